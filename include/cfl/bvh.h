@@ -1,0 +1,36 @@
+#pragma once
+/// @file
+/// A bounding volume hierarchy over the triangles of a mesh: plain data, no pointers.
+
+#include "cfl/mesh.h"
+
+#include <cstdint>
+#include <vector>
+
+namespace cfl {
+
+/// One node of a Bvh. Inner nodes have count == 0 and children at `first` and `first + 1`; leaves have
+/// count > 0 and own Bvh::triangle_ids[first, first + count).
+struct BvhNode {
+  Aabb box;                 ///< Bounds of every triangle below, mesh frame.
+  Eigen::Vector3d center;   ///< Center of a sphere bounding every triangle below (not the box's circumsphere).
+  double radius = 0;        ///< Radius of that sphere.
+  std::int32_t first = 0;
+  std::int32_t count = 0;
+
+  bool isLeaf() const { return count > 0; }
+};
+
+/// The hierarchy; nodes[0] is the root. Built top-down by splitting the longest axis of the centroid
+/// bounds at the median (binned SAH would be tighter; median split keeps builds fast and deterministic).
+/// Immutable after construction, so concurrent readers are safe.
+struct Bvh {
+  std::vector<BvhNode> nodes;
+  std::vector<std::int32_t> triangle_ids;  ///< Triangle ids in leaf order.
+};
+
+/// Builds the hierarchy of `mesh` (which must pass validateMesh) with at most `max_leaf_size` triangles
+/// per leaf. O(n log n) time, O(n) memory.
+Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size = 1);
+
+}  // namespace cfl

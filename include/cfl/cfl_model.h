@@ -1,0 +1,92 @@
+#pragma once
+/// @file
+/// The discrete Voronoi regions of a mesh: a voxel grid where every voxel holds its Closest Feature List
+/// (CFL), the triangles that can be the closest triangle to some point of the voxel (Kawachi & Suzuki,
+/// "Distance Computation between Non-convex Polyhedra at Short Range Based on Discrete Voronoi Regions",
+/// section 3).
+
+#include "cfl/mesh_model.h"
+#include "cfl/voxel_grid.h"
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+namespace cfl {
+
+/// How to precompute a CflModel. Every field has a default that works.
+struct BuildOptions {
+  /// Voxels along the grid's longest axis. 0 picks one automatically (see automaticResolution).
+  /// Cost grows with its cube: finer grids give shorter lists (faster queries) for more build time and memory.
+  int resolution = 0;
+  /// The grid covers the mesh's bounding box scaled by this factor about its center (paper: 2). Must be
+  /// >= 1. Parts of the other mesh outside the grid are still answered exactly, through the mesh's Bvh.
+  double padding = 2.0;
+  /// Paper section 3.6: drop a triangle from voxels outside its approximate Voronoi region, bounded by a
+  /// plane through each edge shared with exactly one other consistently oriented triangle. Off by default:
+  /// the planes are a heuristic, and only where the tests prove them conservative is the option safe.
+  bool topology_culling = false;
+  /// Worker threads for the build; 0 means every hardware thread. The result does not depend on it.
+  int threads = 0;
+  /// Called from the calling thread with the fraction done, in [0, 1], a few hundred times per build.
+  std::function<void(double)> progress;
+};
+
+/// Figures of a built model (paper Table 1).
+struct BuildStatistics {
+  int resolution = 0;                 ///< Voxels along the longest axis.
+  std::int64_t voxel_count = 0;
+  double average_list_length = 0;     ///< Mean CFL length over all voxels.
+  std::int64_t longest_list = 0;
+  std::int64_t distinct_lists = 0;    ///< Identical lists are stored once.
+  std::int64_t memory_bytes = 0;      ///< Bytes of the model, mesh and Bvh included.
+  double build_seconds = 0;           ///< Wall time of buildCflModel.
+};
+
+/// A mesh with its CFL voxels. Plain data; immutable once built, so any number of threads may query one
+/// model at once. Built by buildCflModel or loaded from a file.
+struct CflModel {
+  MeshModel geometry;  ///< The mesh, its corners and its Bvh (frame M).
+  VoxelGrid grid;      ///< Frame M.
+  double padding = 2.0;
+  bool topology_culling = false;
+
+  /// CSR storage of the lists: voxel v's CFL is
+  /// list_triangles[list_offsets[voxel_list[v]], list_offsets[voxel_list[v] + 1]).
+  /// Triangle ids are indices into geometry.mesh.triangles, sorted increasingly within a list.
+  std::vector<std::uint32_t> voxel_list;
+  std::vector<std::uint32_t> list_offsets;
+  std::vector<std::int32_t> list_triangles;
+
+  /// Per voxel, a lower bound on the distance from any point of the voxel to the mesh (0 where the mesh
+  /// passes through the voxel).
+  std::vector<double> voxel_lower_bound;
+  /// Per grid corner, the distance from the corner to the mesh (rounded down). Distance to a set is
+  /// 1-Lipschitz, so dist(p, mesh) >= corner_distance[c] - |p - corner c| for every point p.
+  std::vector<double> corner_distance;
+
+  BuildStatistics statistics;
+
+  /// The CFL of voxel v as a [begin, end) range of triangle ids.
+  const std::int32_t* listBegin(std::int64_t v) const { return list_triangles.data() + list_offsets[voxel_list[v]]; }
+  const std::int32_t* listEnd(std::int64_t v) const { return list_triangles.data() + list_offsets[voxel_list[v] + 1]; }
+};
+
+/// The resolution used when BuildOptions::resolution is 0: about two mean triangle edge lengths per voxel
+/// near the mesh, clamped to [8, 64] so that build time stays in seconds. See the README for the
+/// measurements behind the rule.
+int automaticResolution(const TriangleMesh& mesh, double padding);
+
+/// Precomputes the CFL voxels of `mesh`.
+///
+/// Every list is conservative: for every point p of a voxel, the list holds a triangle at distance
+/// dist(p, mesh) from p. A triangle i is left out of voxel V only when some triangle k satisfies
+/// dmax(V, k) < dmin(V, i), where dmin is a lower bound on the voxel-triangle distance and dmax the largest
+/// corner-triangle distance (the farthest point of V from triangle k, distance being convex).
+///
+/// Throws cfl::Error for an invalid mesh (see validateMesh), resolution < 0, padding < 1 or not finite, or a
+/// grid whose lists would not fit in memory (the message says how many voxels and bytes it would need).
+/// Time: roughly O(voxels * local triangles), spread over BuildOptions::threads.
+CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options = {});
+
+}  // namespace cfl

@@ -1,0 +1,27 @@
+#pragma once
+/// @file
+/// A validated mesh with the acceleration data every query needs.
+
+#include "cfl/bvh.h"
+#include "cfl/mesh.h"
+
+#include <array>
+#include <vector>
+
+namespace cfl {
+
+/// A validated triangle mesh, its triangles' corners gathered for the distance kernels, and its Bvh.
+/// This is what the query needs of the "other" mesh B; a CflModel holds one for its own mesh.
+/// Immutable after construction: concurrent queries are safe.
+struct MeshModel {
+  TriangleMesh mesh;
+  std::vector<std::array<Eigen::Vector3d, 3>> corners;  ///< corners[t] = the 3 vertices of triangle t, frame M.
+  Bvh bvh;
+  Aabb bounds;  ///< Bounds of the vertices that triangles use.
+};
+
+/// Validates `mesh` (throws cfl::Error naming the defect, see validateMesh) and builds its model.
+/// O(n log n).
+MeshModel makeMeshModel(TriangleMesh mesh);
+
+}  // namespace cfl

@@ -1,0 +1,240 @@
+// Input validation: every defect throws cfl::Error naming the culprit; valid but ugly geometry is accepted.
+
+#include "cfl/cfl_model.h"
+#include "cfl/cfl_query.h"
+#include "cfl/error.h"
+#include "cfl/mesh.h"
+#include "cfl/mesh_model.h"
+#include "support/test_meshes.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <string>
+
+namespace cfl {
+namespace {
+
+constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
+}
+
+// Runs `f`, expects a cfl::Error, and returns its message (lower case) for the caller to inspect.
+std::string errorMessage(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return lower(e.what());
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "expected cfl::Error, got another exception: " << e.what();
+    return {};
+  }
+  ADD_FAILURE() << "expected cfl::Error, nothing was thrown";
+  return {};
+}
+
+// A valid 10-vertex, 12-triangle mesh to break in controlled ways.
+TriangleMesh smallMesh() {
+  TriangleMesh mesh = test::makeBox(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 2, 3));
+  mesh.vertices.push_back(Eigen::Vector3d(0.5, 0.5, 0.5));
+  mesh.vertices.push_back(Eigen::Vector3d(0.25, 0.5, 0.75));
+  return mesh;
+}
+
+// The three entry points that must reject an invalid mesh with the same diagnosis.
+void expectEveryEntryPointRejects(const TriangleMesh& mesh, const std::vector<std::string>& expected_words) {
+  BuildOptions options;
+  options.resolution = 6;
+  const std::string messages[] = {
+      errorMessage([&] { validateMesh(mesh); }),
+      errorMessage([&] { makeMeshModel(mesh); }),
+      errorMessage([&] { buildCflModel(mesh, options); }),
+  };
+  for (const std::string& message : messages) {
+    for (const std::string& word : expected_words) {
+      EXPECT_NE(message.find(word), std::string::npos) << "message \"" << message << "\" does not name \"" << word << "\"";
+    }
+  }
+}
+
+TEST(MeshValidation, ValidMeshIsAccepted) {
+  EXPECT_NO_THROW(validateMesh(smallMesh()));
+  EXPECT_NO_THROW(makeMeshModel(smallMesh()));
+}
+
+TEST(MeshValidation, EmptyMeshIsRejected) {
+  expectEveryEntryPointRejects(TriangleMesh{}, {"triangle"});
+  TriangleMesh vertices_only;
+  vertices_only.vertices.push_back(Eigen::Vector3d::Zero());
+  expectEveryEntryPointRejects(vertices_only, {"triangle"});
+}
+
+TEST(MeshValidation, NanCoordinateIsRejectedNamingTheVertex) {
+  TriangleMesh mesh = smallMesh();
+  mesh.vertices[7].y() = kNan;
+  expectEveryEntryPointRejects(mesh, {"vertex 7", "nan"});
+}
+
+TEST(MeshValidation, InfiniteCoordinateIsRejectedNamingTheVertex) {
+  TriangleMesh mesh = smallMesh();
+  mesh.vertices[6].z() = -kInf;
+  expectEveryEntryPointRejects(mesh, {"vertex 6", "inf"});
+}
+
+TEST(MeshValidation, NonFiniteUnusedVertexIsRejected) {
+  // Vertex 9 is used by no triangle; the contract still requires every coordinate to be finite.
+  TriangleMesh mesh = smallMesh();
+  mesh.vertices[9].x() = kInf;
+  expectEveryEntryPointRejects(mesh, {"vertex 9"});
+}
+
+TEST(MeshValidation, OutOfRangeIndexIsRejectedNamingTriangleAndIndex) {
+  TriangleMesh mesh = smallMesh();
+  mesh.triangles[11][2] = 900;
+  expectEveryEntryPointRejects(mesh, {"triangle 11", "900"});
+  mesh = smallMesh();
+  mesh.triangles[4][0] = static_cast<int>(mesh.vertices.size());  // one past the end
+  expectEveryEntryPointRejects(mesh, {"triangle 4", std::to_string(mesh.vertices.size())});
+}
+
+TEST(MeshValidation, NegativeIndexIsRejectedNamingTriangleAndIndex) {
+  TriangleMesh mesh = smallMesh();
+  mesh.triangles[3][1] = -4;
+  expectEveryEntryPointRejects(mesh, {"triangle 3", "-4"});
+}
+
+TEST(MeshValidation, DegenerateAndDuplicateTrianglesAreAccepted) {
+  const TriangleMesh messy = test::makeMessyMesh();
+  EXPECT_NO_THROW(validateMesh(messy));
+  EXPECT_NO_THROW(makeMeshModel(messy));
+  BuildOptions options;
+  options.resolution = 6;
+  EXPECT_NO_THROW(buildCflModel(messy, options));
+
+  // A mesh of nothing but one point-triangle is still a valid (if degenerate) mesh.
+  TriangleMesh point;
+  point.vertices.push_back(Eigen::Vector3d(1, 2, 3));
+  point.triangles.push_back({0, 0, 0});
+  EXPECT_NO_THROW(validateMesh(point));
+  EXPECT_NO_THROW(buildCflModel(point, options));
+}
+
+TEST(MeshValidation, BoundingBoxIgnoresVerticesNoTriangleUses) {
+  const TriangleMesh messy = test::makeMessyMesh();  // has an unused vertex at (100, -100, 100)
+  const Aabb box = boundingBox(messy);
+  Aabb expected;
+  for (const auto& t : messy.triangles) {
+    for (int k = 0; k < 3; ++k) expected.extend(messy.vertices[t[k]]);
+  }
+  EXPECT_EQ(box.min, expected.min);
+  EXPECT_EQ(box.max, expected.max);
+  EXPECT_EQ(makeMeshModel(messy).bounds.max, expected.max);
+}
+
+TEST(MeshModel, CornersAreTheTrianglesVertices) {
+  const TriangleMesh messy = test::makeMessyMesh();
+  const MeshModel model = makeMeshModel(messy);
+  ASSERT_EQ(model.corners.size(), messy.triangles.size());
+  for (std::size_t t = 0; t < messy.triangles.size(); ++t) {
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(model.corners[t][k], messy.vertices[messy.triangles[t][k]]) << "triangle " << t;
+  }
+}
+
+TEST(BuildOptionsValidation, NegativeResolutionIsRejectedNamingTheValue) {
+  BuildOptions options;
+  options.resolution = -3;
+  const std::string message = errorMessage([&] { buildCflModel(smallMesh(), options); });
+  EXPECT_NE(message.find("resolution"), std::string::npos) << message;
+  EXPECT_NE(message.find("-3"), std::string::npos) << message;
+}
+
+TEST(BuildOptionsValidation, PaddingBelowOneIsRejectedNamingTheValue) {
+  BuildOptions options;
+  options.resolution = 6;
+  options.padding = 0.5;
+  const std::string message = errorMessage([&] { buildCflModel(smallMesh(), options); });
+  EXPECT_NE(message.find("padding"), std::string::npos) << message;
+  EXPECT_NE(message.find("0.5"), std::string::npos) << message;
+}
+
+TEST(BuildOptionsValidation, NonFinitePaddingIsRejected) {
+  BuildOptions options;
+  options.resolution = 6;
+  for (double padding : {kNan, kInf, -kInf}) {
+    options.padding = padding;
+    const std::string message = errorMessage([&] { buildCflModel(smallMesh(), options); });
+    EXPECT_NE(message.find("padding"), std::string::npos) << message;
+    EXPECT_TRUE(message.find("nan") != std::string::npos || message.find("inf") != std::string::npos) << message;
+  }
+}
+
+TEST(BuildOptionsValidation, PaddingOfExactlyOneIsAccepted) {
+  BuildOptions options;
+  options.resolution = 6;
+  options.padding = 1.0;
+  EXPECT_NO_THROW(buildCflModel(smallMesh(), options));
+}
+
+Eigen::Isometry3d somePose() {
+  test::Rng rng(7);
+  return test::randomPose(rng, 2.0);
+}
+
+TEST(PoseValidation, RigidPosesAreAccepted) {
+  test::Rng rng(11);
+  for (int i = 0; i < 100; ++i) EXPECT_NO_THROW(validatePose(test::randomPose(rng, 100.0), "X_WA"));
+  // Well inside the documented 1e-6 tolerance: a rotation that went through a few float operations.
+  Eigen::Isometry3d X = somePose();
+  X.linear() *= 1 + 1e-9;
+  EXPECT_NO_THROW(validatePose(X, "X_WA"));
+}
+
+TEST(PoseValidation, NonFinitePoseIsRejectedNamingThePose) {
+  Eigen::Isometry3d X = somePose();
+  X.translation().y() = kNan;
+  std::string message = errorMessage([&] { validatePose(X, "X_WB"); });
+  EXPECT_NE(message.find("x_wb"), std::string::npos) << message;
+
+  X = somePose();
+  X.linear()(1, 2) = kInf;
+  message = errorMessage([&] { validatePose(X, "X_WA"); });
+  EXPECT_NE(message.find("x_wa"), std::string::npos) << message;
+}
+
+TEST(PoseValidation, NonOrthonormalRotationIsRejectedNamingThePose) {
+  Eigen::Isometry3d scaled = somePose();
+  scaled.linear() *= 1.01;
+  Eigen::Isometry3d sheared = somePose();
+  sheared.linear()(0, 1) += 1e-3;
+  Eigen::Isometry3d reflected = somePose();
+  reflected.linear().col(2) *= -1;  // orthonormal but determinant -1
+  Eigen::Isometry3d zero = somePose();
+  zero.linear().setZero();
+  for (const Eigen::Isometry3d& X : {scaled, sheared, reflected, zero}) {
+    const std::string message = errorMessage([&] { validatePose(X, "X_WB"); });
+    EXPECT_NE(message.find("x_wb"), std::string::npos) << message;
+  }
+}
+
+TEST(PoseValidation, DistanceQueryRejectsBadPoses) {
+  BuildOptions options;
+  options.resolution = 6;
+  const CflModel a = buildCflModel(test::makeTorus(1.0, 0.3, 8, 4), options);
+  const MeshModel b = makeMeshModel(test::makeTorus(1.0, 0.3, 8, 4));
+  Eigen::Isometry3d bad = somePose();
+  bad.linear() *= 2;
+  errorMessage([&] { computeDistance(a, bad, b, Eigen::Isometry3d::Identity()); });
+  errorMessage([&] { computeDistance(a, Eigen::Isometry3d::Identity(), b, bad); });
+  errorMessage([&] { computeDistance(a, Eigen::Isometry3d::Identity(), a, bad); });
+}
+
+}  // namespace
+}  // namespace cfl

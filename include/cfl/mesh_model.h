@@ -16,11 +16,14 @@ namespace cfl {
 struct MeshModel {
   TriangleMesh mesh;
   std::vector<std::array<Eigen::Vector3d, 3>> corners;  ///< corners[t] = the 3 vertices of triangle t, frame M.
+  /// A sphere around each triangle (center and radius, frame M): a cheap lower bound before exact tests.
+  std::vector<Eigen::Vector4d> spheres;
   Bvh bvh;
   Aabb bounds;  ///< Bounds of the vertices that triangles use.
 };
 
-/// Validates `mesh` (throws cfl::Error naming the defect, see validateMesh) and builds its model.
+/// Validates `mesh` (throws cfl::Error naming the defect, see validateMesh) and builds its model; every
+/// field but `mesh` is derived from it deterministically.
 /// O(n log n).
 MeshModel makeMeshModel(TriangleMesh mesh);
 

@@ -1,0 +1,287 @@
+#include "cfl/cfl_model.h"
+
+#include "cfl/error.h"
+#include "cfl/triangle_distance.h"
+#include "detail/box_triangle_bound.h"
+#include "detail/nearest_triangle.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <thread>
+#include <unordered_map>
+#include <unistd.h>
+
+namespace cfl {
+namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+int workerCount(int requested) {
+  if (requested > 0) return requested;
+  const unsigned hardware = std::thread::hardware_concurrency();
+  return hardware == 0 ? 1 : static_cast<int>(hardware);
+}
+
+// Runs task(item) for item in [0, count) on `threads` workers, pulling items from a shared counter so that
+// uneven rows balance out. The calling thread only reports progress, so the callback never runs elsewhere.
+template <typename Task>
+void parallelFor(std::int64_t count, int threads, const std::function<void(double)>& progress, double progress_begin,
+                 double progress_end, Task task) {
+  std::atomic<std::int64_t> next{0};
+  std::atomic<std::int64_t> done{0};
+  auto worker = [&] {
+    for (std::int64_t item; (item = next.fetch_add(1)) < count;) {
+      task(item);
+      done.fetch_add(1);
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
+  if (progress) {
+    while (done.load() < count) {
+      progress(progress_begin + (progress_end - progress_begin) * double(done.load()) / double(count));
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
+  for (auto& thread : pool) thread.join();
+  if (progress) progress(progress_end);
+}
+
+// Every triangle whose bounding box is within `radius` of p (a superset of those within radius).
+void trianglesNear(const MeshModel& model, const Eigen::Vector3d& p, double radius, std::vector<int>& out) {
+  out.clear();
+  const auto& nodes = model.bvh.nodes;
+  const double radius_squared = radius * radius;
+  int stack[128];  // see nearestTriangle for why this is enough
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const BvhNode& node = nodes[stack[--top]];
+    if (detail::pointBoxSquaredDistance(p, node.box) > radius_squared) continue;
+    if (node.isLeaf()) {
+      for (int i = node.first; i < node.first + node.count; ++i) out.push_back(model.bvh.triangle_ids[i]);
+    } else {
+      stack[top++] = node.first;
+      stack[top++] = node.first + 1;
+    }
+  }
+}
+
+std::int64_t physicalMemoryBytes() {
+  const long pages = sysconf(_SC_PHYS_PAGES);
+  const long page_size = sysconf(_SC_PAGE_SIZE);
+  if (pages <= 0 || page_size <= 0) return std::numeric_limits<std::int64_t>::max();
+  return std::int64_t(pages) * page_size;
+}
+
+struct RowLists {
+  std::vector<std::int32_t> ids;      // the row's lists, one after another
+  std::vector<std::uint32_t> counts;  // length of each voxel's list
+  std::vector<double> lower_bounds;   // per voxel
+};
+
+}  // namespace
+
+int automaticResolution(const TriangleMesh& mesh, double padding) {
+  validateMesh(mesh);
+  double edge_sum = 0;
+  for (const auto& t : mesh.triangles) {
+    for (int e = 0; e < 3; ++e) edge_sum += (mesh.vertices[t[e]] - mesh.vertices[t[(e + 1) % 3]]).norm();
+  }
+  const double mean_edge = edge_sum / (3.0 * mesh.triangles.size());
+  const double longest = boundingBox(mesh).size().maxCoeff() * std::max(1.0, padding);
+  if (!(mean_edge > 0)) return 8;
+  const double resolution = longest / (2.0 * mean_edge);
+  return static_cast<int>(std::clamp(std::round(resolution), 8.0, 64.0));
+}
+
+CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (options.resolution < 0) {
+    throw Error("resolution must be >= 1 (or 0 for automatic), got " + std::to_string(options.resolution));
+  }
+  if (!std::isfinite(options.padding) || options.padding < 1.0) {
+    std::ostringstream message;
+    message << "padding must be a finite factor >= 1, got " << options.padding;
+    throw Error(message.str());
+  }
+  CflModel model;
+  model.geometry = makeMeshModel(std::move(mesh));
+  const MeshModel& geometry = model.geometry;
+  const int resolution =
+      options.resolution > 0 ? options.resolution : automaticResolution(geometry.mesh, options.padding);
+  model.grid = makeVoxelGrid(geometry.bounds, resolution, options.padding);
+  model.padding = options.padding;
+  model.topology_culling = options.topology_culling;
+  const VoxelGrid& grid = model.grid;
+
+  const std::int64_t voxel_count = grid.voxelCount();
+  const std::int64_t corner_count = grid.cornerCount();
+  // The lists average a few entries; the per-voxel and per-corner arrays are the floor.
+  const std::int64_t floor_bytes = voxel_count * std::int64_t(sizeof(std::uint32_t) + sizeof(double)) +
+                                   corner_count * std::int64_t(sizeof(double) + sizeof(int));
+  if (voxel_count > std::numeric_limits<std::uint32_t>::max() / 2 || floor_bytes > physicalMemoryBytes() / 2) {
+    std::ostringstream message;
+    message << "resolution " << resolution << " needs " << grid.dims[0] << " x " << grid.dims[1] << " x " << grid.dims[2]
+            << " = " << voxel_count << " voxels and at least " << floor_bytes << " bytes, more than half of this machine's "
+            << physicalMemoryBytes() << " bytes of memory; use a smaller resolution";
+    throw Error(message.str());
+  }
+
+  const int threads = workerCount(options.threads);
+  const auto& progress = options.progress;
+
+  // 1. Distance field at the grid corners, with the nearest triangle of each. Rows are walked in order so
+  //    that each corner starts from its neighbour's nearest triangle, which usually is its own.
+  model.corner_distance.resize(corner_count);
+  std::vector<int> corner_triangle(corner_count, 0);
+  const int corner_rows = (grid.dims[1] + 1) * (grid.dims[2] + 1);
+  parallelFor(corner_rows, threads, progress, 0.0, 0.2, [&](std::int64_t row) {
+    const int j = static_cast<int>(row % (grid.dims[1] + 1));
+    const int k = static_cast<int>(row / (grid.dims[1] + 1));
+    int hint = -1;
+    for (int i = 0; i <= grid.dims[0]; ++i) {
+      const Eigen::Vector3d p = grid.cornerPosition(i, j, k);
+      double best = kInfinity;
+      int best_triangle = -1;
+      if (hint >= 0) {
+        const auto& c = geometry.corners[hint];
+        best = pointTriangleSquaredDistance(p, c[0], c[1], c[2]);
+        best_triangle = hint;
+      }
+      detail::nearestTriangle(geometry, p, best, best_triangle);
+      const std::int64_t index = grid.cornerIndex(i, j, k);
+      // Rounded down so that it stays a lower bound however it was rounded on the way.
+      model.corner_distance[index] = std::nextafter(std::sqrt(best), 0.0);
+      corner_triangle[index] = best_triangle;
+      hint = best_triangle;
+    }
+  });
+
+  // 2. The lists. For voxel V with center c and half edge e, U = min_k dmax(V, k) over the corners' nearest
+  //    triangles is an upper bound on the distance from any point of V to the mesh. Triangle i belongs to the
+  //    list unless dmin(V, i) > U; since dmin(V, i) >= dist(c, i) - sqrt(3) e, only triangles within
+  //    U + sqrt(3) e of c can belong, and a Bvh ball query finds them.
+  const int rows = grid.dims[1] * grid.dims[2];
+  std::vector<RowLists> row_lists(rows);
+  const double half = 0.5 * grid.voxel_size;
+  const double half_diagonal = std::sqrt(3.0) * half;
+  parallelFor(rows, threads, progress, 0.2, 0.95, [&](std::int64_t row) {
+    const int j = static_cast<int>(row % grid.dims[1]);
+    const int k = static_cast<int>(row / grid.dims[1]);
+    RowLists& out = row_lists[row];
+    out.counts.reserve(grid.dims[0]);
+    out.lower_bounds.reserve(grid.dims[0]);
+    std::vector<int> candidates;
+    std::vector<int> upper_candidates;
+    for (int i = 0; i < grid.dims[0]; ++i) {
+      Eigen::Vector3d corners[8];
+      upper_candidates.clear();
+      for (int n = 0; n < 8; ++n) {
+        const int ci = i + (n & 1), cj = j + ((n >> 1) & 1), ck = k + ((n >> 2) & 1);
+        corners[n] = grid.cornerPosition(ci, cj, ck);
+        const int t = corner_triangle[grid.cornerIndex(ci, cj, ck)];
+        if (std::find(upper_candidates.begin(), upper_candidates.end(), t) == upper_candidates.end()) {
+          upper_candidates.push_back(t);
+        }
+      }
+      double upper = kInfinity;  // squared
+      for (int t : upper_candidates) {
+        const auto& c = geometry.corners[t];
+        double farthest = 0;
+        for (int n = 0; n < 8 && farthest < upper; ++n) {
+          farthest = std::max(farthest, pointTriangleSquaredDistance(corners[n], c[0], c[1], c[2]));
+        }
+        upper = std::min(upper, farthest);
+      }
+      // Rounded up: a list may hold one triangle too many, never one too few.
+      const double upper_bound = std::nextafter(std::sqrt(upper), kInfinity) * (1 + 1e-12);
+      const Eigen::Vector3d center = grid.voxelCenter(i, j, k);
+      trianglesNear(geometry, center, upper_bound + half_diagonal, candidates);
+      std::sort(candidates.begin(), candidates.end());
+      std::uint32_t count = 0;
+      double lower = kInfinity;
+      for (int t : candidates) {
+        const auto& c = geometry.corners[t];
+        Eigen::Vector3d closest;
+        const double d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
+        if (d_center - half_diagonal > upper_bound) continue;
+        const double d_min = detail::cubeTriangleLowerBound(center, half, c[0], c[1], c[2], closest);
+        if (d_min > upper_bound) continue;
+        out.ids.push_back(t);
+        ++count;
+        lower = std::min(lower, d_min);
+      }
+      out.counts.push_back(count);
+      // The lower bound of the voxel: the closest triangle to any of its points is listed, so the smallest
+      // listed dmin bounds the voxel-mesh distance from below.
+      out.lower_bounds.push_back(std::nextafter(lower, 0.0) * (1 - 1e-12));
+    }
+  });
+
+  // 3. Flatten in voxel order, storing identical lists once.
+  model.voxel_list.resize(voxel_count);
+  model.voxel_lower_bound.resize(voxel_count);
+  model.list_offsets.assign(1, 0);
+  std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> lists_by_hash;
+  std::int64_t total_length = 0, longest = 0;
+  for (int row = 0; row < rows; ++row) {
+    const RowLists& in = row_lists[row];
+    const int j = row % grid.dims[1];
+    const int k = row / grid.dims[1];
+    std::size_t offset = 0;
+    for (int i = 0; i < grid.dims[0]; ++i) {
+      const std::int64_t v = grid.voxelIndex(i, j, k);
+      const std::int32_t* list = in.ids.data() + offset;
+      const std::uint32_t length = in.counts[i];
+      offset += length;
+      total_length += length;
+      longest = std::max<std::int64_t>(longest, length);
+      model.voxel_lower_bound[v] = in.lower_bounds[i];
+      std::uint64_t hash = 1469598103934665603ull ^ length;
+      for (std::uint32_t n = 0; n < length; ++n) hash = (hash ^ std::uint32_t(list[n])) * 1099511628211ull;
+      auto& same_hash = lists_by_hash[hash];
+      std::uint32_t found = std::numeric_limits<std::uint32_t>::max();
+      for (std::uint32_t id : same_hash) {
+        const std::uint32_t begin = model.list_offsets[id], end = model.list_offsets[id + 1];
+        if (end - begin == length && std::equal(list, list + length, model.list_triangles.begin() + begin)) {
+          found = id;
+          break;
+        }
+      }
+      if (found == std::numeric_limits<std::uint32_t>::max()) {
+        found = static_cast<std::uint32_t>(model.list_offsets.size() - 1);
+        model.list_triangles.insert(model.list_triangles.end(), list, list + length);
+        model.list_offsets.push_back(static_cast<std::uint32_t>(model.list_triangles.size()));
+        same_hash.push_back(found);
+      }
+      model.voxel_list[v] = found;
+    }
+    row_lists[row] = RowLists();  // release as we go
+  }
+
+  BuildStatistics& stats = model.statistics;
+  stats.resolution = resolution;
+  stats.voxel_count = voxel_count;
+  stats.average_list_length = double(total_length) / double(voxel_count);
+  stats.longest_list = longest;
+  stats.distinct_lists = std::int64_t(model.list_offsets.size()) - 1;
+  stats.memory_bytes = std::int64_t(model.voxel_list.size() * sizeof(std::uint32_t) +
+                                    model.list_offsets.size() * sizeof(std::uint32_t) +
+                                    model.list_triangles.size() * sizeof(std::int32_t) +
+                                    model.voxel_lower_bound.size() * sizeof(double) +
+                                    model.corner_distance.size() * sizeof(double) +
+                                    geometry.mesh.vertices.size() * sizeof(Eigen::Vector3d) +
+                                    geometry.mesh.triangles.size() * sizeof(std::array<int, 3>) +
+                                    geometry.corners.size() * sizeof(std::array<Eigen::Vector3d, 3>) +
+                                    geometry.bvh.nodes.size() * sizeof(BvhNode) +
+                                    geometry.bvh.triangle_ids.size() * sizeof(std::int32_t));
+  stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return model;
+}
+
+}  // namespace cfl

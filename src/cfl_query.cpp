@@ -1,0 +1,489 @@
+#include "cfl/cfl_query.h"
+
+#include "cfl/error.h"
+#include "cfl/triangle_distance.h"
+#include "detail/box_triangle_bound.h"
+#include "detail/nearest_triangle.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace cfl {
+namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+// B's pose in A's frame, applied by hand: Eigen's Isometry product carries a homogeneous row we don't need.
+struct RigidTransform {
+  Eigen::Matrix3d rotation;
+  Eigen::Vector3d translation;
+  Eigen::Vector3d apply(const Eigen::Vector3d& p) const { return rotation * p + translation; }
+};
+
+RigidTransform relativePose(const Eigen::Isometry3d& X_WA, const Eigen::Isometry3d& X_WB) {
+  validatePose(X_WA, "pose of A");
+  validatePose(X_WB, "pose of B");
+  const Eigen::Matrix3d R_AW = X_WA.linear().transpose();
+  return {R_AW * X_WB.linear(), R_AW * (X_WB.translation() - X_WA.translation())};
+}
+
+// Scratch reused across queries on one thread, so queries allocate only while it grows.
+struct Scratch {
+  std::vector<std::uint32_t> stamp;  // per triangle of A: the B leaf that last tested it
+  std::uint32_t generation = 0;
+  struct VoxelCandidate {
+    double lower_bound;
+    std::int64_t voxel;
+    int triangle_b;
+  };
+  std::vector<VoxelCandidate> voxel_candidates;
+  std::vector<int> outside_triangles;
+
+  void beginQuery(std::size_t triangle_count) {
+    if (stamp.size() < triangle_count) {
+      stamp.assign(triangle_count, 0);
+      generation = 0;
+    }
+  }
+  std::uint32_t nextGeneration() {
+    if (++generation == 0) {
+      std::fill(stamp.begin(), stamp.end(), 0);
+      generation = 1;
+    }
+    return generation;
+  }
+};
+
+thread_local Scratch tls_scratch;
+
+// The search state shared by both modes, everything in A's frame.
+class Search {
+ public:
+  Search(const CflModel& a, const MeshModel& b, const RigidTransform& X_AB, const DistanceOptions& options,
+         Scratch& scratch)
+      : a_(a), mesh_a_(a.geometry), b_(b), X_AB_(X_AB), options_(options), scratch_(scratch) {
+    scratch_.beginQuery(mesh_a_.corners.size());
+    grid_box_ = a_.grid.bounds();
+    if (options.hint_triangle_a >= 0 && options.hint_triangle_a < int(mesh_a_.corners.size()) &&
+        options.hint_triangle_b >= 0 && options.hint_triangle_b < int(b_.corners.size())) {
+      Eigen::Vector3d tb[3];
+      transformTriangle(options.hint_triangle_b, tb);
+      testPair(options.hint_triangle_a, options.hint_triangle_b, tb);
+    }
+  }
+
+  // A search step whose lower bound is at least this is skipped (FCL's canStop rule).
+  double pruneThreshold() const {
+    if (options_.abs_err == 0 && options_.rel_err == 0) return best_;
+    return std::max(best_ - options_.abs_err, best_ / (1 + options_.rel_err));
+  }
+
+  void transformTriangle(int t, Eigen::Vector3d out[3]) const {
+    const auto& c = b_.corners[t];
+    for (int n = 0; n < 3; ++n) out[n] = X_AB_.apply(c[n]);
+  }
+
+  // Exact distance between triangle a of A and triangle b of B (already in A's frame).
+  void testPair(int a, int b, const Eigen::Vector3d tb[3]) {
+    ++counters_.triangle_pairs;
+    Eigen::Vector3d p, q;
+    const double squared = triangleTriangleSquaredDistance(mesh_a_.corners[a].data(), tb, &p, &q);
+    const double distance = std::sqrt(squared);
+    if (distance < best_ || best_a_ < 0) {
+      best_ = distance;
+      best_a_ = a;
+      best_b_ = b;
+      point_a_ = p;
+      point_b_ = q;
+    }
+  }
+
+  // Lower bound on the distance from any point within `radius` of `center` to A, in O(1): the nearest grid
+  // corner's distance minus how far the point can be from it (distance to a set is 1-Lipschitz), or the
+  // distance to A's bounding box when that is larger.
+  double sphereLowerBound(const Eigen::Vector3d& center, double radius) const {
+    const VoxelGrid& grid = a_.grid;
+    const Eigen::Vector3d cell = (center - grid.origin) / grid.voxel_size;
+    int index[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      const double rounded = std::round(cell[axis]);
+      index[axis] = static_cast<int>(std::clamp(rounded, 0.0, double(grid.dims[axis])));
+    }
+    const Eigen::Vector3d corner = grid.cornerPosition(index[0], index[1], index[2]);
+    const double field = a_.corner_distance[grid.cornerIndex(index[0], index[1], index[2])] - (center - corner).norm();
+    const double box = std::sqrt(detail::pointBoxSquaredDistance(center, mesh_a_.bounds));
+    return std::max(field, box) - radius;
+  }
+
+  // Voxel index range covering a box that lies inside the grid.
+  void voxelRange(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int first[3], int last[3]) const {
+    const VoxelGrid& grid = a_.grid;
+    for (int axis = 0; axis < 3; ++axis) {
+      first[axis] = std::clamp(int(std::floor((lo[axis] - grid.origin[axis]) / grid.voxel_size)), 0, grid.dims[axis] - 1);
+      last[axis] = std::clamp(int(std::floor((hi[axis] - grid.origin[axis]) / grid.voxel_size)), 0, grid.dims[axis] - 1);
+    }
+  }
+
+  // Triangle b of B against the CFLs of the voxels its bounding box covers. Every point of the triangle lies
+  // in one of them, and each point's closest triangle of A is in its voxel's list, so the minimum over these
+  // lists is the triangle's exact distance to A.
+  void testTriangleAgainstLists(int b, const Eigen::Vector3d tb[3]) {
+    const Eigen::Vector3d lo = tb[0].cwiseMin(tb[1]).cwiseMin(tb[2]);
+    const Eigen::Vector3d hi = tb[0].cwiseMax(tb[1]).cwiseMax(tb[2]);
+    const Eigen::Vector3d center = b_.spheres[b].head<3>();
+    const Eigen::Vector3d center_A = X_AB_.apply(center);
+    const double radius = b_.spheres[b][3];
+    int first[3], last[3];
+    voxelRange(lo, hi, first, last);
+    const std::uint32_t generation = scratch_.nextGeneration();
+    const VoxelGrid& grid = a_.grid;
+    for (int k = first[2]; k <= last[2]; ++k) {
+      for (int j = first[1]; j <= last[1]; ++j) {
+        for (int i = first[0]; i <= last[0]; ++i) {
+          const std::int64_t v = grid.voxelIndex(i, j, k);
+          ++counters_.voxel_tests;
+          if (a_.voxel_lower_bound[v] >= pruneThreshold()) continue;
+          for (const std::int32_t* it = a_.listBegin(v); it != a_.listEnd(v); ++it) {
+            const int t = *it;
+            if (scratch_.stamp[t] == generation) continue;
+            scratch_.stamp[t] = generation;
+            const Eigen::Vector4d& sphere = mesh_a_.spheres[t];
+            const double gap = (sphere.head<3>() - center_A).norm() - sphere[3] - radius;
+            if (gap >= pruneThreshold()) continue;
+            testPair(t, b, tb);
+          }
+        }
+      }
+    }
+  }
+
+  // Triangle b of B against A's Bvh: exact wherever the triangle is, for the parts outside the grid.
+  void testTriangleAgainstBvh(int b, const Eigen::Vector3d tb[3]) {
+    const Eigen::Vector3d center_A = X_AB_.apply(b_.spheres[b].head<3>());
+    const double radius = b_.spheres[b][3];
+    const auto& nodes = mesh_a_.bvh.nodes;
+    int stack[128];  // depth-first, one pending sibling per level of a median-split tree
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const BvhNode& node = nodes[stack[--top]];
+      ++counters_.voxel_tests;
+      const double gap = std::sqrt(detail::pointBoxSquaredDistance(center_A, node.box)) - radius;
+      if (gap >= pruneThreshold()) continue;
+      if (node.isLeaf()) {
+        for (int n = node.first; n < node.first + node.count; ++n) testPair(mesh_a_.bvh.triangle_ids[n], b, tb);
+        continue;
+      }
+      const double d_left = detail::pointBoxSquaredDistance(center_A, nodes[node.first].box);
+      const double d_right = detail::pointBoxSquaredDistance(center_A, nodes[node.first + 1].box);
+      if (d_left <= d_right) {
+        stack[top++] = node.first + 1;
+        stack[top++] = node.first;
+      } else {
+        stack[top++] = node.first;
+        stack[top++] = node.first + 1;
+      }
+    }
+  }
+
+  void testTriangle(int b) {
+    Eigen::Vector3d tb[3];
+    transformTriangle(b, tb);
+    const Eigen::Vector3d lo = tb[0].cwiseMin(tb[1]).cwiseMin(tb[2]);
+    const Eigen::Vector3d hi = tb[0].cwiseMax(tb[1]).cwiseMax(tb[2]);
+    if ((lo.array() >= grid_box_.min.array()).all() && (hi.array() <= grid_box_.max.array()).all()) {
+      testTriangleAgainstLists(b, tb);
+    } else {
+      testTriangleAgainstBvh(b, tb);
+    }
+  }
+
+  // Default mode: B's Bvh depth-first, nearer child first, each node culled by its O(1) lower bound.
+  void runHierarchical() {
+    const auto& nodes = b_.bvh.nodes;
+    struct Entry {
+      int node;
+      double lower_bound;
+    };
+    Entry stack[128];
+    int top = 0;
+    auto bound = [&](int n) {
+      ++counters_.voxel_tests;
+      return sphereLowerBound(X_AB_.apply(nodes[n].center), nodes[n].radius);
+    };
+    stack[top++] = {0, bound(0)};
+    while (top > 0) {
+      const Entry entry = stack[--top];
+      if (entry.lower_bound >= pruneThreshold()) continue;
+      const BvhNode& node = nodes[entry.node];
+      if (node.isLeaf()) {
+        for (int n = node.first; n < node.first + node.count; ++n) testTriangle(b_.bvh.triangle_ids[n]);
+        continue;
+      }
+      const Entry left{node.first, bound(node.first)};
+      const Entry right{node.first + 1, bound(node.first + 1)};
+      if (left.lower_bound <= right.lower_bound) {
+        stack[top++] = right;
+        stack[top++] = left;
+      } else {
+        stack[top++] = left;
+        stack[top++] = right;
+      }
+    }
+  }
+
+  // Is triangle j of B listed in a voxel of B's grid that triangle a of A touches? A necessary condition
+  // for (a, j) to be the closest pair (the mutual closest-feature condition, paper equation 5): at the
+  // closest pair (p on a, q on j), j is the closest triangle of B to p. Returns true when it cannot tell
+  // (a outside B's grid).
+  bool mutualCondition(const CflModel& b_model, const RigidTransform& X_BA, int a, int j) {
+    const auto& c = mesh_a_.corners[a];
+    const Eigen::Vector3d p0 = X_BA.apply(c[0]), p1 = X_BA.apply(c[1]), p2 = X_BA.apply(c[2]);
+    const Eigen::Vector3d lo = p0.cwiseMin(p1).cwiseMin(p2), hi = p0.cwiseMax(p1).cwiseMax(p2);
+    const Aabb box = b_model.grid.bounds();
+    if (!(lo.array() >= box.min.array()).all() || !(hi.array() <= box.max.array()).all()) return true;
+    const VoxelGrid& grid = b_model.grid;
+    int first[3], last[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      first[axis] = std::clamp(int(std::floor((lo[axis] - grid.origin[axis]) / grid.voxel_size)), 0, grid.dims[axis] - 1);
+      last[axis] = std::clamp(int(std::floor((hi[axis] - grid.origin[axis]) / grid.voxel_size)), 0, grid.dims[axis] - 1);
+    }
+    for (int k = first[2]; k <= last[2]; ++k) {
+      for (int jj = first[1]; jj <= last[1]; ++jj) {
+        for (int i = first[0]; i <= last[0]; ++i) {
+          const std::int64_t v = grid.voxelIndex(i, jj, k);
+          ++counters_.voxel_tests;
+          if (std::binary_search(b_model.listBegin(v), b_model.listEnd(v), j)) return true;
+        }
+      }
+    }
+    return false;
+  }
+
+  // The paper's four steps (section 4). `b_model` is B's CflModel when it has one (for step 2).
+  void runPaper(const CflModel* b_model, const RigidTransform* X_BA) {
+    auto& candidates = scratch_.voxel_candidates;
+    auto& outside = scratch_.outside_triangles;
+    candidates.clear();
+    outside.clear();
+    const VoxelGrid& grid = a_.grid;
+    const double half = 0.5 * grid.voxel_size;
+    const double touch_slack = 1e-9 * grid.voxel_size;
+    // Step 1: voxels of A touched by triangles of B, through B's Bvh (nodes missing the grid are skipped).
+    const auto& nodes = b_.bvh.nodes;
+    int stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const BvhNode& node = nodes[stack[--top]];
+      ++counters_.voxel_tests;
+      if (!node.isLeaf()) {
+        stack[top++] = node.first;
+        stack[top++] = node.first + 1;
+        continue;
+      }
+      for (int n = node.first; n < node.first + node.count; ++n) {
+        const int t = b_.bvh.triangle_ids[n];
+        Eigen::Vector3d tb[3];
+        transformTriangle(t, tb);
+        const Eigen::Vector3d lo = tb[0].cwiseMin(tb[1]).cwiseMin(tb[2]);
+        const Eigen::Vector3d hi = tb[0].cwiseMax(tb[1]).cwiseMax(tb[2]);
+        if (!(lo.array() >= grid_box_.min.array()).all() || !(hi.array() <= grid_box_.max.array()).all()) {
+          outside.push_back(t);
+          continue;
+        }
+        int first[3], last[3];
+        voxelRange(lo, hi, first, last);
+        for (int k = first[2]; k <= last[2]; ++k) {
+          for (int j = first[1]; j <= last[1]; ++j) {
+            for (int i = first[0]; i <= last[0]; ++i) {
+              ++counters_.voxel_tests;
+              const Eigen::Vector3d voxel_center = grid.voxelCenter(i, j, k);
+              // Only voxels the triangle really touches (separating axis test). The slack keeps a triangle
+              // lying exactly on a voxel face in both voxels whatever the rounding.
+              Eigen::Vector3d closest;
+              pointTriangleSquaredDistance(voxel_center, tb[0], tb[1], tb[2], &closest);
+              if (detail::cubeTriangleLowerBound(voxel_center, half, tb[0], tb[1], tb[2], closest) > touch_slack) continue;
+              const std::int64_t v = grid.voxelIndex(i, j, k);
+              candidates.push_back({a_.voxel_lower_bound[v], v, t});
+            }
+          }
+        }
+      }
+    }
+    // Steps 3 and 4: voxels in increasing lower bound, each list against the triangles of B in it.
+    std::sort(candidates.begin(), candidates.end(),
+              [](const auto& x, const auto& y) { return x.lower_bound < y.lower_bound; });
+    for (const auto& candidate : candidates) {
+      if (candidate.lower_bound >= pruneThreshold()) break;
+      Eigen::Vector3d tb[3];
+      transformTriangle(candidate.triangle_b, tb);
+      for (const std::int32_t* it = a_.listBegin(candidate.voxel); it != a_.listEnd(candidate.voxel); ++it) {
+        if (b_model && !mutualCondition(*b_model, *X_BA, *it, candidate.triangle_b)) continue;
+        testPair(*it, candidate.triangle_b, tb);
+      }
+    }
+    for (int t : outside) {
+      Eigen::Vector3d tb[3];
+      transformTriangle(t, tb);
+      testTriangleAgainstBvh(t, tb);
+    }
+  }
+
+  DistanceResult result(const Eigen::Isometry3d& X_WA) const {
+    DistanceResult r;
+    r.counters = counters_;
+    if (best_a_ < 0) return r;
+    r.distance = best_;
+    r.triangle_a = best_a_;
+    r.triangle_b = best_b_;
+    r.point_a = X_WA * point_a_;
+    r.point_b = r.distance == 0 ? r.point_a : Eigen::Vector3d(X_WA * point_b_);
+    return r;
+  }
+
+ private:
+  const CflModel& a_;
+  const MeshModel& mesh_a_;
+  const MeshModel& b_;
+  RigidTransform X_AB_;
+  const DistanceOptions& options_;
+  Scratch& scratch_;
+  Aabb grid_box_;
+  QueryCounters counters_;
+  double best_ = kInfinity;
+  int best_a_ = -1, best_b_ = -1;
+  Eigen::Vector3d point_a_, point_b_;
+};
+
+void validateOptions(const DistanceOptions& options) {
+  if (!(options.rel_err >= 0) || !std::isfinite(options.rel_err) || !(options.abs_err >= 0) ||
+      !std::isfinite(options.abs_err)) {
+    std::ostringstream message;
+    message << "rel_err and abs_err must be finite and >= 0, got rel_err " << options.rel_err << " and abs_err "
+            << options.abs_err;
+    throw Error(message.str());
+  }
+}
+
+DistanceResult distanceImpl(const CflModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
+                            const Eigen::Isometry3d& X_WB, const DistanceOptions& options, const CflModel* b_model) {
+  validateOptions(options);
+  const RigidTransform X_AB = relativePose(X_WA, X_WB);
+  Search search(a, b, X_AB, options, tls_scratch);
+  if (options.mode == QueryMode::kPaper) {
+    RigidTransform X_BA;
+    if (b_model) X_BA = RigidTransform{X_AB.rotation.transpose(), -(X_AB.rotation.transpose() * X_AB.translation)};
+    search.runPaper(b_model, b_model ? &X_BA : nullptr);
+  } else {
+    search.runHierarchical();
+  }
+  return search.result(X_WA);
+}
+
+}  // namespace
+
+void validatePose(const Eigen::Isometry3d& X, const char* what) {
+  const Eigen::Matrix4d& m = X.matrix();
+  if (!m.allFinite()) {
+    std::ostringstream message;
+    message << what << " is not finite:\n" << m;
+    throw Error(message.str());
+  }
+  const Eigen::Matrix3d R = X.linear();
+  const double orthonormality = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  const double determinant = R.determinant();
+  if (orthonormality > 1e-6 || std::abs(determinant - 1) > 1e-6) {
+    std::ostringstream message;
+    message << what << " is not a rigid transform: its rotation has |R^T R - I| = " << orthonormality
+            << " and det(R) = " << determinant << " (both must be within 1e-6 of a rotation)";
+    throw Error(message.str());
+  }
+}
+
+DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
+                               const Eigen::Isometry3d& X_WB, const DistanceOptions& options) {
+  return distanceImpl(a, X_WA, b, X_WB, options, nullptr);
+}
+
+DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA, const CflModel& b,
+                               const Eigen::Isometry3d& X_WB, const DistanceOptions& options) {
+  return distanceImpl(a, X_WA, b.geometry, X_WB, options, &b);
+}
+
+DistanceResult bruteForceDistance(const MeshModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
+                                  const Eigen::Isometry3d& X_WB) {
+  const RigidTransform X_AB = relativePose(X_WA, X_WB);
+  DistanceResult r;
+  double best = kInfinity;
+  Eigen::Vector3d tb[3];
+  for (std::size_t j = 0; j < b.corners.size(); ++j) {
+    for (int n = 0; n < 3; ++n) tb[n] = X_AB.apply(b.corners[j][n]);
+    for (std::size_t i = 0; i < a.corners.size(); ++i) {
+      Eigen::Vector3d p, q;
+      ++r.counters.triangle_pairs;
+      const double squared = triangleTriangleSquaredDistance(a.corners[i].data(), tb, &p, &q);
+      if (squared < best) {
+        best = squared;
+        r.triangle_a = int(i);
+        r.triangle_b = int(j);
+        r.point_a = p;
+        r.point_b = q;
+      }
+    }
+  }
+  r.distance = std::sqrt(best);
+  r.point_a = X_WA * r.point_a;
+  r.point_b = r.distance == 0 ? r.point_a : Eigen::Vector3d(X_WA * r.point_b);
+  return r;
+}
+
+bool computeCollision(const MeshModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
+                      const Eigen::Isometry3d& X_WB, std::size_t max_contacts, std::vector<Contact>* contacts) {
+  const RigidTransform X_AB = relativePose(X_WA, X_WB);
+  if (a.bvh.nodes.empty() || b.bvh.nodes.empty()) return false;
+  std::size_t found = 0;
+  const std::size_t limit = contacts ? std::max<std::size_t>(max_contacts, 1) : 1;
+  struct Pair {
+    int a, b;
+  };
+  std::vector<Pair> stack{{0, 0}};
+  while (!stack.empty() && found < limit) {
+    const Pair pair = stack.back();
+    stack.pop_back();
+    const BvhNode& na = a.bvh.nodes[pair.a];
+    const BvhNode& nb = b.bvh.nodes[pair.b];
+    const Eigen::Vector3d center_b = X_AB.apply(nb.center);
+    // Overlap needs the sphere of B's node to reach A's box and A's sphere.
+    if (detail::pointBoxSquaredDistance(center_b, na.box) > nb.radius * nb.radius) continue;
+    const double reach = na.radius + nb.radius;
+    if ((center_b - na.center).squaredNorm() > reach * reach) continue;
+    if (na.isLeaf() && nb.isLeaf()) {
+      for (int i = na.first; i < na.first + na.count && found < limit; ++i) {
+        for (int j = nb.first; j < nb.first + nb.count && found < limit; ++j) {
+          const int ta = a.bvh.triangle_ids[i], tb_id = b.bvh.triangle_ids[j];
+          Eigen::Vector3d tb[3];
+          for (int n = 0; n < 3; ++n) tb[n] = X_AB.apply(b.corners[tb_id][n]);
+          Eigen::Vector3d point;
+          if (trianglesIntersect(a.corners[ta].data(), tb, &point)) {
+            ++found;
+            if (contacts) contacts->push_back({ta, tb_id, X_WA * point});
+          }
+        }
+      }
+      continue;
+    }
+    const bool split_a = !na.isLeaf() && (nb.isLeaf() || na.radius >= nb.radius);
+    if (split_a) {
+      stack.push_back({na.first, pair.b});
+      stack.push_back({na.first + 1, pair.b});
+    } else {
+      stack.push_back({pair.a, nb.first});
+      stack.push_back({pair.a, nb.first + 1});
+    }
+  }
+  return found > 0;
+}
+
+}  // namespace cfl

@@ -1,0 +1,59 @@
+#pragma once
+// Internal: closest triangle of a MeshModel to a point, through its Bvh.
+
+#include "cfl/mesh_model.h"
+#include "cfl/triangle_distance.h"
+
+#include <algorithm>
+#include <cstdint>
+
+namespace cfl::detail {
+
+/// Squared distance from p to the box (0 inside).
+inline double pointBoxSquaredDistance(const Eigen::Vector3d& p, const Aabb& box) {
+  const Eigen::Vector3d below = (box.min - p).cwiseMax(0.0);
+  const Eigen::Vector3d above = (p - box.max).cwiseMax(0.0);
+  return (below + above).squaredNorm();
+}
+
+/// The triangle of `model` nearest to p (frame M). `best_squared` is an upper bound on entry (infinity, or
+/// the squared distance of `best_triangle`, a warm start) and the answer's squared distance on exit.
+/// Triangles farther than the entry bound are never reported. Allocation-free; visits nodes nearest-first.
+inline void nearestTriangle(const MeshModel& model, const Eigen::Vector3d& p, double& best_squared, int& best_triangle,
+                            Eigen::Vector3d* closest = nullptr) {
+  const auto& nodes = model.bvh.nodes;
+  if (nodes.empty()) return;
+  // Median-split trees are at most ~log2(n) + 1 deep and depth-first search keeps at most one pending
+  // sibling per level, so 128 entries cannot overflow.
+  int stack[128];
+  int top = 0;
+  if (pointBoxSquaredDistance(p, nodes[0].box) > best_squared) return;
+  stack[top++] = 0;
+  while (top > 0) {
+    const BvhNode& node = nodes[stack[--top]];
+    if (node.isLeaf()) {
+      for (int i = node.first; i < node.first + node.count; ++i) {
+        const int t = model.bvh.triangle_ids[i];
+        const auto& c = model.corners[t];
+        Eigen::Vector3d q;
+        const double d = pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q);
+        if (d < best_squared) {
+          best_squared = d;
+          best_triangle = t;
+          if (closest) *closest = q;
+        }
+      }
+      continue;
+    }
+    const double d_left = pointBoxSquaredDistance(p, nodes[node.first].box);
+    const double d_right = pointBoxSquaredDistance(p, nodes[node.first + 1].box);
+    // Push the farther child first so the nearer one is searched first and tightens the bound.
+    const bool left_first = d_left <= d_right;
+    const double d_far = left_first ? d_right : d_left;
+    const double d_near = left_first ? d_left : d_right;
+    if (d_far <= best_squared) stack[top++] = left_first ? node.first + 1 : node.first;
+    if (d_near <= best_squared) stack[top++] = left_first ? node.first : node.first + 1;
+  }
+}
+
+}  // namespace cfl::detail

@@ -1,0 +1,186 @@
+// Structural invariants of buildBvh on several meshes and leaf sizes: the tree is a partition of the
+// triangles, and every node's box and sphere bound everything below it.
+
+#include "cfl/bvh.h"
+#include "support/test_meshes.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+namespace cfl {
+namespace {
+
+struct NamedMesh {
+  std::string name;
+  TriangleMesh mesh;
+};
+
+std::vector<NamedMesh> testMeshes() {
+  return {
+      {"torus", test::makeTorus()},
+      {"knot", test::makeTorusKnot()},
+      {"soup", test::makeTriangleSoup(500, 42)},
+      {"hemisphere", test::makeHemisphere()},
+      {"messy", test::makeMessyMesh()},
+      {"self_intersecting", test::makeSelfIntersectingMesh()},
+      {"bunny", test::loadBunny()},
+  };
+}
+
+// Spheres are computed in floating point; a relative slack of 1e-12 of the radius absorbs that rounding,
+// while any real bounding error is many orders larger.
+bool sphereContains(const BvhNode& node, const Eigen::Vector3d& p) {
+  return (p - node.center).norm() <= node.radius * (1 + 1e-12) + 1e-300;
+}
+
+bool boxContains(const Aabb& box, const Eigen::Vector3d& p) {
+  return (box.min.array() <= p.array()).all() && (p.array() <= box.max.array()).all();
+}
+
+bool boxContains(const Aabb& outer, const Aabb& inner) {
+  return (outer.min.array() <= inner.min.array()).all() && (inner.max.array() <= outer.max.array()).all();
+}
+
+// Checks every invariant of `bvh` over `mesh`.
+void checkInvariants(const TriangleMesh& mesh, const Bvh& bvh, int max_leaf_size, const std::string& label) {
+  SCOPED_TRACE(label);
+  const int n = static_cast<int>(mesh.triangles.size());
+  ASSERT_FALSE(bvh.nodes.empty());
+  ASSERT_EQ(static_cast<int>(bvh.triangle_ids.size()), n);
+
+  // triangle_ids is a permutation of [0, n).
+  std::vector<int> seen_in_ids(n, 0);
+  for (int id : bvh.triangle_ids) {
+    ASSERT_GE(id, 0);
+    ASSERT_LT(id, n);
+    ++seen_in_ids[id];
+  }
+  for (int t = 0; t < n; ++t) EXPECT_EQ(seen_in_ids[t], 1) << "triangle " << t << " in triangle_ids";
+
+  // Walk from the root: every node is reached exactly once, and the leaves cover every slot of
+  // triangle_ids exactly once.
+  const int node_count = static_cast<int>(bvh.nodes.size());
+  std::vector<int> node_visits(node_count, 0);
+  std::vector<int> slot_visits(n, 0);
+  std::vector<int> stack{0};
+  while (!stack.empty()) {
+    const int index = stack.back();
+    stack.pop_back();
+    ASSERT_GE(index, 0);
+    ASSERT_LT(index, node_count);
+    ASSERT_EQ(++node_visits[index], 1) << "node " << index << " reached twice";
+    const BvhNode& node = bvh.nodes[index];
+    ASSERT_FALSE(node.box.empty()) << "node " << index;
+    if (node.isLeaf()) {
+      EXPECT_GE(node.count, 1);
+      EXPECT_LE(node.count, max_leaf_size) << "node " << index;
+      ASSERT_GE(node.first, 0);
+      ASSERT_LE(node.first + node.count, n);
+      for (int slot = node.first; slot < node.first + node.count; ++slot) {
+        ++slot_visits[slot];
+        const auto& tri = mesh.triangles[bvh.triangle_ids[slot]];
+        for (int k = 0; k < 3; ++k) {
+          const Eigen::Vector3d& v = mesh.vertices[tri[k]];
+          EXPECT_TRUE(boxContains(node.box, v)) << "node " << index << " box misses triangle " << bvh.triangle_ids[slot];
+          EXPECT_TRUE(sphereContains(node, v))
+              << "node " << index << " sphere misses triangle " << bvh.triangle_ids[slot] << " by "
+              << (v - node.center).norm() - node.radius;
+        }
+      }
+    } else {
+      ASSERT_GE(node.first, 1);
+      ASSERT_LT(node.first + 1, node_count);
+      for (int child = node.first; child <= node.first + 1; ++child) {
+        EXPECT_TRUE(boxContains(node.box, bvh.nodes[child].box)) << "node " << index << " child " << child;
+        stack.push_back(child);
+      }
+    }
+  }
+  for (int i = 0; i < node_count; ++i) EXPECT_EQ(node_visits[i], 1) << "node " << i << " unreachable";
+  for (int slot = 0; slot < n; ++slot) EXPECT_EQ(slot_visits[slot], 1) << "slot " << slot << " of triangle_ids";
+
+  // The box and sphere of an inner node bound every triangle below it, not only its children's volumes
+  // (a query prunes with the inner node's volume alone).
+  std::vector<int> order;  // parents before children
+  order.push_back(0);
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    const BvhNode& node = bvh.nodes[order[k]];
+    if (!node.isLeaf()) {
+      order.push_back(node.first);
+      order.push_back(node.first + 1);
+    }
+  }
+  std::vector<std::vector<int>> below(node_count);
+  for (auto it = order.rbegin(); it != order.rend(); ++it) {
+    const BvhNode& node = bvh.nodes[*it];
+    if (node.isLeaf()) {
+      below[*it].assign(bvh.triangle_ids.begin() + node.first, bvh.triangle_ids.begin() + node.first + node.count);
+    } else {
+      below[*it] = below[node.first];
+      below[*it].insert(below[*it].end(), below[node.first + 1].begin(), below[node.first + 1].end());
+    }
+    for (int t : below[*it]) {
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector3d& v = mesh.vertices[mesh.triangles[t][k]];
+        EXPECT_TRUE(boxContains(node.box, v)) << "node " << *it << " box misses triangle " << t;
+        EXPECT_TRUE(sphereContains(node, v)) << "node " << *it << " sphere misses triangle " << t << " by "
+                                             << (v - node.center).norm() - node.radius;
+      }
+    }
+  }
+  EXPECT_EQ(static_cast<int>(below[0].size()), n);
+}
+
+TEST(Bvh, InvariantsHoldOnSeveralMeshesAndLeafSizes) {
+  for (const NamedMesh& named : testMeshes()) {
+    for (int max_leaf_size : {1, 2, 4, 8}) {
+      const Bvh bvh = buildBvh(named.mesh, max_leaf_size);
+      checkInvariants(named.mesh, bvh, max_leaf_size, named.name + " leaf size " + std::to_string(max_leaf_size));
+    }
+  }
+}
+
+TEST(Bvh, SingleTriangleMeshIsOneLeaf) {
+  TriangleMesh mesh;
+  mesh.vertices = {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 2, 1)};
+  mesh.triangles = {{0, 1, 2}};
+  for (int max_leaf_size : {1, 4}) {
+    const Bvh bvh = buildBvh(mesh, max_leaf_size);
+    checkInvariants(mesh, bvh, max_leaf_size, "single triangle");
+    ASSERT_EQ(bvh.nodes.size(), 1u);
+    EXPECT_TRUE(bvh.nodes[0].isLeaf());
+    EXPECT_EQ(bvh.nodes[0].count, 1);
+  }
+}
+
+TEST(Bvh, IdenticalTrianglesAreSplitIntoBoundedLeaves) {
+  // Every centroid equal: a median split must still terminate and respect the leaf size.
+  TriangleMesh mesh;
+  mesh.vertices = {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 0)};
+  for (int t = 0; t < 37; ++t) mesh.triangles.push_back({0, 1, 2});
+  for (int max_leaf_size : {1, 3}) {
+    checkInvariants(mesh, buildBvh(mesh, max_leaf_size), max_leaf_size, "identical triangles");
+  }
+  TriangleMesh points;
+  points.vertices = {Eigen::Vector3d(0.5, -1, 2)};
+  for (int t = 0; t < 9; ++t) points.triangles.push_back({0, 0, 0});
+  checkInvariants(points, buildBvh(points, 2), 2, "point triangles");
+}
+
+TEST(Bvh, BuildIsDeterministic) {
+  const TriangleMesh mesh = test::makeTriangleSoup(300, 5);
+  const Bvh first = buildBvh(mesh, 2);
+  const Bvh second = buildBvh(mesh, 2);
+  EXPECT_EQ(first.triangle_ids, second.triangle_ids);
+  ASSERT_EQ(first.nodes.size(), second.nodes.size());
+  for (std::size_t i = 0; i < first.nodes.size(); ++i) {
+    EXPECT_EQ(first.nodes[i].first, second.nodes[i].first);
+    EXPECT_EQ(first.nodes[i].count, second.nodes[i].count);
+    EXPECT_EQ(first.nodes[i].radius, second.nodes[i].radius);
+  }
+}
+
+}  // namespace
+}  // namespace cfl

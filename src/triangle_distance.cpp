@@ -1,0 +1,439 @@
+// Exact point / segment / triangle distance kernels.
+//
+// Numerical design (why the code looks the way it does):
+// - Every distance is computed from differences of nearby inputs (p - a, x0 - y0, ...), never from absolute
+//   coordinates, so a configuration far from the origin loses nothing beyond the rounding of its own inputs.
+// - Point-triangle uses the triangle normal n and the in-plane inward edge normals m_i = n x e_i instead of the
+//   barycentric dot-product formulas (Ericson's va/vb/vc). The region test m_i . (p - v_i) then errs by about
+//   eps |p - v_i| in the plane; the dot-product formulas err by eps |p - a|^2 / (size * sin(angle)), which is
+//   far worse for points far from small triangles (voxel centres of a coarse grid).
+// - The normal of a sliver triangle is ill-conditioned in double: its direction errs by about
+//   eps / sin(angle). For angles below ~1e-3 rad the normal is recomputed in long double from the vertex
+//   opposite the longest edge (the best-conditioned corner, law of sines); only below ~sqrt(eps_ld) is the
+//   triangle treated as the segment it nearly is, which then errs by at most its height (< 1e-9 of its size
+//   with 80-bit long double).
+// - Segment-segment uses the closed form (Ericson, Real-Time Collision Detection, 5.1.9) when the segments are
+//   far from parallel, and the cross-product form of the same line parameter, whose error is second order in
+//   the direction error, when they are nearly parallel.
+// - Triangle-triangle: min over 6 vertex-face and 9 edge-edge pairs, with plane-distance lower bounds to skip
+//   pairs, plus edge-crossing tests so that intersecting triangles report distance 0 and a common point.
+
+#include "cfl/triangle_distance.h"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace cfl {
+namespace {
+
+using Vec = Eigen::Vector3d;
+
+// Below this sin^2 of the corner angle the double normal is not trusted (direction error ~ 2e-16 / 1e-3).
+constexpr double kFastSin2 = 1e-6;
+// Below this sin^2 (with the long double normal) the triangle is treated as its three edges. sqrt(4 eps_ld)
+// balances the normal's direction error (eps_ld / sin) against the triangle's height (sin * size).
+const double kDegenerateSin2 = 4.0 * static_cast<double>(std::numeric_limits<long double>::epsilon());
+// Segments closer to parallel than this sin^2 use the cross-product form of the line parameter.
+constexpr double kNearParallelSin2 = 1e-4;
+// Below this sin^2 even the cross-product form is noise; any parameter is within size * sin of optimal.
+constexpr double kParallelSin2 = 1e-24;
+// Two triangles closer than this fraction of their largest edge are touching: distance 0. Well above the
+// rounding of the feature distances (a few eps of the size), far below any tolerance a user can ask for.
+constexpr double kTouchRel = 64.0 * std::numeric_limits<double>::epsilon();
+constexpr double kTouchRel2 = kTouchRel * kTouchRel;
+
+inline double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
+
+// A triangle with the derived quantities every kernel needs. e[i] = v[i+1] - v[i]; m[i] = n x e[i] points into
+// the triangle; the normal n = e[k-1] x e[k] for any corner k (same vector, different rounding).
+struct Tri {
+  const Vec* v;
+  Vec e[3];
+  double e2[3];
+  Vec n;
+  double nn;
+  bool degenerate;
+  Vec m[3];
+};
+
+Vec accurateNormal(const Vec* v, const double* e2) {
+  // The corner opposite the longest edge has the largest sine (law of sines), so its cross product has the
+  // smallest relative error.
+  int k = 0;  // corner k is opposite edge k+1
+  if (e2[2] >= e2[0] && e2[2] >= e2[1]) k = 1;       // edge 2 = v0 - v2 is opposite corner 1
+  else if (e2[0] >= e2[1] && e2[0] >= e2[2]) k = 2;  // edge 0 is opposite corner 2
+  const Vec& o = v[k];
+  const Vec& a = v[(k + 1) % 3];
+  const Vec& b = v[(k + 2) % 3];
+  const long double ax = static_cast<long double>(a.x()) - o.x(), ay = static_cast<long double>(a.y()) - o.y(),
+                    az = static_cast<long double>(a.z()) - o.z();
+  const long double bx = static_cast<long double>(b.x()) - o.x(), by = static_cast<long double>(b.y()) - o.y(),
+                    bz = static_cast<long double>(b.z()) - o.z();
+  // (a - o) x (b - o) is the same normal as (v1 - v0) x (v2 - v0) for any cyclic choice of o.
+  return Vec(static_cast<double>(ay * bz - az * by), static_cast<double>(az * bx - ax * bz),
+             static_cast<double>(ax * by - ay * bx));
+}
+
+// Fills everything but m.
+inline void initTri(const Vec* v, Tri& t) {
+  t.v = v;
+  t.e[0] = v[1] - v[0];
+  t.e[1] = v[2] - v[1];
+  t.e[2] = v[0] - v[2];
+  t.e2[0] = t.e[0].squaredNorm();
+  t.e2[1] = t.e[1].squaredNorm();
+  t.e2[2] = t.e[2].squaredNorm();
+  t.n = t.e[2].cross(t.e[0]);
+  t.nn = t.n.squaredNorm();
+  // Not (nn >= ...) so that NaN input takes the careful path and ends up degenerate (NaN out, no crash).
+  const double scale = t.e2[0] * t.e2[2];
+  if (!(t.nn >= kFastSin2 * scale)) {
+    t.n = accurateNormal(v, t.e2);
+    t.nn = t.n.squaredNorm();
+    const double m2 = std::max({t.e2[0], t.e2[1], t.e2[2]});
+    // sin^2 of the largest angle = nn / (product of its two edges); those are the two shortest edges.
+    const double short_product = t.e2[0] * t.e2[1] * t.e2[2] / m2;
+    t.degenerate = !(t.nn > kDegenerateSin2 * short_product);
+  } else {
+    t.degenerate = false;
+  }
+}
+
+inline void initEdgeNormals(Tri& t) {
+  if (t.degenerate) return;
+  t.m[0] = t.n.cross(t.e[0]);
+  t.m[1] = t.n.cross(t.e[1]);
+  t.m[2] = t.n.cross(t.e[2]);
+}
+
+// Squared distance from p to segment a + s e, s in [0, 1] (e2 = e.e, may be 0); s and the offset p - closest.
+inline double pointSegment(const Vec& p, const Vec& a, const Vec& e, double e2, double* s_out) {
+  const Vec d = p - a;
+  double s = e.dot(d);
+  if (s <= 0.0) {
+    s = 0.0;
+  } else if (s >= e2) {
+    s = 1.0;
+  } else {
+    s /= e2;
+  }
+  *s_out = s;
+  return (d - s * e).squaredNorm();
+}
+
+// Point-triangle on a prepared triangle (initEdgeNormals done). `in_face` tells whether the closest point is
+// interior to the face region (the projection of p lies inside the triangle).
+inline double pointTri(const Tri& t, const Vec& p, Vec* closest, bool* in_face) {
+  *in_face = false;
+  int mask = 7;
+  if (!t.degenerate) {
+    const Vec d0 = p - t.v[0];
+    const double s0 = t.m[0].dot(d0);
+    const double s1 = t.m[1].dot(p - t.v[1]);
+    const double s2 = t.m[2].dot(p - t.v[2]);
+    if (s0 >= 0.0 && s1 >= 0.0 && s2 >= 0.0) {
+      const double h = t.n.dot(d0);
+      const double k = h / t.nn;
+      if (closest) *closest = p - k * t.n;
+      *in_face = true;
+      return h * k;
+    }
+    // The closest boundary point lies on an edge whose line separates p from the triangle.
+    mask = (s0 < 0.0 ? 1 : 0) | (s1 < 0.0 ? 2 : 0) | (s2 < 0.0 ? 4 : 0);
+    if (mask == 0) mask = 7;  // NaN
+  }
+  double best = std::numeric_limits<double>::infinity();
+  int best_i = 0;
+  double best_s = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    if (!(mask & (1 << i))) continue;
+    double s;
+    const double d2 = pointSegment(p, t.v[i], t.e[i], t.e2[i], &s);
+    if (d2 < best || i == best_i) {  // i == best_i keeps NaN results from leaving best_s unset
+      best = d2;
+      best_i = i;
+      best_s = s;
+    }
+  }
+  if (closest) *closest = t.v[best_i] + best_s * t.e[best_i];
+  return best;
+}
+
+// Squared distance between segments x0 + s dx and y0 + t dy, s, t in [0, 1]; dx2 = dx.dx, dy2 = dy.dy.
+inline double segSeg(const Vec& x0, const Vec& dx, double dx2, const Vec& y0, const Vec& dy, double dy2,
+                     double* s_out, double* t_out) {
+  const Vec r = x0 - y0;
+  const double f = dy.dot(r);
+  double s, t;
+  if (dx2 <= 0.0) {
+    s = 0.0;
+    t = dy2 <= 0.0 ? 0.0 : clamp01(f / dy2);
+  } else {
+    const double c = dx.dot(r);
+    if (dy2 <= 0.0) {
+      t = 0.0;
+      s = clamp01(-c / dx2);
+    } else {
+      const double b = dx.dot(dy);
+      const double scale = dx2 * dy2;
+      const double denom = scale - b * b;
+      if (denom > kNearParallelSin2 * scale) {
+        s = clamp01((b * f - c * dy2) / denom);
+      } else {
+        // b f - c dy2 = (dx x dy) . (dy x r) and denom = |dx x dy|^2 (Lagrange). In this form an error in the
+        // direction of dx x dy rotates the plane through line y in which s is sought, which moves the distance
+        // only to second order.
+        const Vec cr = dx.cross(dy);
+        const double cc = cr.squaredNorm();
+        s = cc > kParallelSin2 * scale ? clamp01(cr.dot(dy.cross(r)) / cc) : 0.0;
+      }
+      t = (b * s + f) / dy2;
+      if (t < 0.0) {
+        t = 0.0;
+        s = clamp01(-c / dx2);
+      } else if (t > 1.0) {
+        t = 1.0;
+        s = clamp01((b - c) / dx2);
+      }
+    }
+  }
+  *s_out = s;
+  *t_out = t;
+  return (r + s * dx - t * dy).squaredNorm();
+}
+
+// Whether x (assumed near the plane of t) lies in the closed triangle t (not degenerate, edge normals set).
+inline bool insideTri(const Tri& t, const Vec& x) {
+  return t.m[0].dot(x - t.v[0]) >= 0.0 && t.m[1].dot(x - t.v[1]) >= 0.0 && t.m[2].dot(x - t.v[2]) >= 0.0;
+}
+
+// Finds an edge of a that crosses the closed triangle b; da[i] = b.n . (a.v[i] - b.v[0]).
+inline bool edgeCrossesTri(const Tri& a, const double* da, const Tri& b, Vec* point) {
+  for (int i = 0; i < 3; ++i) {
+    const double d0 = da[i], d1 = da[(i + 1) % 3];
+    if ((d0 > 0.0 && d1 > 0.0) || (d0 < 0.0 && d1 < 0.0) || (d0 == 0.0 && d1 == 0.0)) continue;
+    // Opposite signs (or one zero): |d0| <= |d0 - d1|, so the crossing stays on the edge.
+    const double s = d0 / (d0 - d1);
+    const Vec x = a.v[i] + s * a.e[i];
+    if (insideTri(b, x)) {
+      if (point) *point = x;
+      return true;
+    }
+  }
+  return false;
+}
+
+// The prepared pair: both triangles, the signed plane distances (unnormalised), and which side is separated.
+struct Pair {
+  Tri P, Q;
+  double dp[3];   // Q.n . (p_i - q_0), valid if !Q.degenerate
+  double dq[3];   // P.n . (q_j - p_0), valid if !P.degenerate
+  bool sep_p;     // P lies strictly on one side of Q's plane, by more than the touching tolerance
+  bool sep_q;
+  double touch2;  // squared touching tolerance
+};
+
+inline bool strictlyOneSide(const double* d, double margin2) {
+  if (d[0] > 0.0) {
+    return d[1] > 0.0 && d[2] > 0.0 && d[0] * d[0] > margin2 && d[1] * d[1] > margin2 && d[2] * d[2] > margin2;
+  }
+  if (d[0] < 0.0) {
+    return d[1] < 0.0 && d[2] < 0.0 && d[0] * d[0] > margin2 && d[1] * d[1] > margin2 && d[2] * d[2] > margin2;
+  }
+  return false;
+}
+
+inline void initPair(const Vec p[3], const Vec q[3], Pair& pr) {
+  initTri(p, pr.P);
+  initTri(q, pr.Q);
+  const double l2 = std::max({pr.P.e2[0], pr.P.e2[1], pr.P.e2[2], pr.Q.e2[0], pr.Q.e2[1], pr.Q.e2[2]});
+  pr.touch2 = kTouchRel2 * l2;
+  pr.sep_p = false;
+  pr.sep_q = false;
+  if (!pr.Q.degenerate) {
+    for (int i = 0; i < 3; ++i) pr.dp[i] = pr.Q.n.dot(p[i] - q[0]);
+    pr.sep_p = strictlyOneSide(pr.dp, pr.touch2 * pr.Q.nn);
+  }
+  if (!pr.P.degenerate) {
+    for (int j = 0; j < 3; ++j) pr.dq[j] = pr.P.n.dot(q[j] - p[0]);
+    pr.sep_q = strictlyOneSide(pr.dq, pr.touch2 * pr.P.nn);
+  }
+}
+
+// Minimum over the 6 vertex-face and 9 edge-edge pairs. Stops as soon as a pair is within `stop2` (pass -1
+// to never stop early). Exact for disjoint triangles; for intersecting ones it is only an upper bound.
+double featureDistance(Pair& pr, double stop2, Vec* cp, Vec* cq) {
+  Tri& P = pr.P;
+  Tri& Q = pr.Q;
+  const Vec* p = P.v;
+  const Vec* q = Q.v;
+  initEdgeNormals(P);
+  initEdgeNormals(Q);
+
+  // Lower bounds from the planes: a vertex (edge) of P on one side of Q's plane is at least its plane distance
+  // from anything in Q.
+  double lb_pv[3] = {0, 0, 0}, lb_qv[3] = {0, 0, 0}, lb_pe[3] = {0, 0, 0}, lb_qe[3] = {0, 0, 0};
+  if (!Q.degenerate) {
+    const double inv = 1.0 / Q.nn;
+    for (int i = 0; i < 3; ++i) lb_pv[i] = pr.dp[i] * pr.dp[i] * inv;
+    for (int i = 0; i < 3; ++i) {
+      const int j = (i + 1) % 3;
+      if (pr.dp[i] * pr.dp[j] > 0.0) lb_pe[i] = std::min(lb_pv[i], lb_pv[j]);
+    }
+  }
+  if (!P.degenerate) {
+    const double inv = 1.0 / P.nn;
+    for (int i = 0; i < 3; ++i) lb_qv[i] = pr.dq[i] * pr.dq[i] * inv;
+    for (int i = 0; i < 3; ++i) {
+      const int j = (i + 1) % 3;
+      if (pr.dq[i] * pr.dq[j] > 0.0) lb_qe[i] = std::min(lb_qv[i], lb_qv[j]);
+    }
+  }
+
+  double best = std::numeric_limits<double>::infinity();
+  Vec bp = p[0], bq = q[0];
+  bool done_pv[3] = {false, false, false}, done_qv[3] = {false, false, false};
+
+  // The vertex of P nearest Q's plane first: if P is on one side of that plane and the vertex projects into Q,
+  // the plane distance is both a lower bound and attained, so it is the answer.
+  {
+    const int k = lb_pv[0] <= lb_pv[1] ? (lb_pv[0] <= lb_pv[2] ? 0 : 2) : (lb_pv[1] <= lb_pv[2] ? 1 : 2);
+    Vec c;
+    bool face;
+    const double d2 = pointTri(Q, p[k], &c, &face);
+    done_pv[k] = true;
+    if (d2 < best) {
+      best = d2;
+      bp = p[k];
+      bq = c;
+    }
+    if ((face && pr.sep_p) || best <= stop2) goto finish;
+  }
+  {
+    const int k = lb_qv[0] <= lb_qv[1] ? (lb_qv[0] <= lb_qv[2] ? 0 : 2) : (lb_qv[1] <= lb_qv[2] ? 1 : 2);
+    Vec c;
+    bool face;
+    const double d2 = pointTri(P, q[k], &c, &face);
+    done_qv[k] = true;
+    if (d2 < best) {
+      best = d2;
+      bp = c;
+      bq = q[k];
+    }
+    if ((face && pr.sep_q && d2 <= best) || best <= stop2) goto finish;
+  }
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      if (std::max(lb_pe[i], lb_qe[j]) >= best) continue;
+      double s, t;
+      const double d2 = segSeg(p[i], P.e[i], P.e2[i], q[j], Q.e[j], Q.e2[j], &s, &t);
+      if (d2 < best) {
+        best = d2;
+        bp = p[i] + s * P.e[i];
+        bq = q[j] + t * Q.e[j];
+        if (best <= stop2) goto finish;
+      }
+    }
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (!done_pv[k] && lb_pv[k] < best) {
+      Vec c;
+      bool face;
+      const double d2 = pointTri(Q, p[k], &c, &face);
+      if (d2 < best) {
+        best = d2;
+        bp = p[k];
+        bq = c;
+        if (best <= stop2) goto finish;
+      }
+    }
+    if (!done_qv[k] && lb_qv[k] < best) {
+      Vec c;
+      bool face;
+      const double d2 = pointTri(P, q[k], &c, &face);
+      if (d2 < best) {
+        best = d2;
+        bp = c;
+        bq = q[k];
+        if (best <= stop2) goto finish;
+      }
+    }
+  }
+finish:
+  if (cp) *cp = bp;
+  if (cq) *cq = bq;
+  return best;
+}
+
+// For triangles not separated by a plane: whether they intersect or touch. Shared by
+// triangleTriangleSquaredDistance and trianglesIntersect so that both take the same decision. If they do,
+// *x is a common point; if not, *d2 is the full feature distance with its closest points (computed here once).
+bool intersectOrTouch(Pair& pr, Vec* x, double* d2, Vec* cp, Vec* cq) {
+  initEdgeNormals(pr.P);
+  initEdgeNormals(pr.Q);
+  if (!pr.Q.degenerate && edgeCrossesTri(pr.P, pr.dp, pr.Q, x)) return true;
+  if (!pr.P.degenerate && edgeCrossesTri(pr.Q, pr.dq, pr.P, x)) return true;
+  // Coplanar overlap, contact within rounding, or degenerate triangles: some feature pair is (nearly) at
+  // distance 0. featureDistance only stops early below touch2, so above it *d2 is the exact minimum.
+  Vec a, b;
+  *d2 = featureDistance(pr, pr.touch2, &a, &b);
+  if (*d2 <= pr.touch2) {
+    *x = 0.5 * (a + b);
+    return true;
+  }
+  if (cp) *cp = a;
+  if (cq) *cq = b;
+  return false;
+}
+
+}  // namespace
+
+double pointTriangleSquaredDistance(const Vec& p, const Vec& a, const Vec& b, const Vec& c, Vec* closest) {
+  const Vec v[3] = {a, b, c};
+  Tri t;
+  initTri(v, t);
+  initEdgeNormals(t);
+  bool face;
+  return pointTri(t, p, closest, &face);
+}
+
+double segmentSegmentSquaredDistance(const Vec& p0, const Vec& p1, const Vec& q0, const Vec& q1, Vec* closest_p,
+                                     Vec* closest_q) {
+  const Vec dp = p1 - p0;
+  const Vec dq = q1 - q0;
+  double s, t;
+  const double d2 = segSeg(p0, dp, dp.squaredNorm(), q0, dq, dq.squaredNorm(), &s, &t);
+  if (closest_p) *closest_p = p0 + s * dp;
+  if (closest_q) *closest_q = q0 + t * dq;
+  return d2;
+}
+
+double triangleTriangleSquaredDistance(const Vec p[3], const Vec q[3], Vec* closest_p, Vec* closest_q) {
+  Pair pr;
+  initPair(p, q, pr);
+  if (pr.sep_p || pr.sep_q) return featureDistance(pr, -1.0, closest_p, closest_q);
+  Vec x;
+  double d2;
+  if (intersectOrTouch(pr, &x, &d2, closest_p, closest_q)) {
+    if (closest_p) *closest_p = x;
+    if (closest_q) *closest_q = x;
+    return 0.0;
+  }
+  return d2;
+}
+
+bool trianglesIntersect(const Vec p[3], const Vec q[3], Vec* point) {
+  Pair pr;
+  initPair(p, q, pr);
+  if (pr.sep_p || pr.sep_q) return false;
+  Vec x;
+  double d2;
+  if (!intersectOrTouch(pr, &x, &d2, nullptr, nullptr)) return false;
+  if (point) *point = x;
+  return true;
+}
+
+}  // namespace cfl

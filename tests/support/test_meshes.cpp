@@ -291,7 +291,10 @@ Eigen::Isometry3d placeAtDistance(const std::function<double(const Eigen::Isomet
     if (distance(at(0)) > target) continue;
     if (target == 0) return at(0);
     double lo = 0, hi = bounds_b.diagonal() + target;
-    while (distance(at(hi)) < target) hi *= 2;
+    for (int doubling = 0; distance(at(hi)) < target; ++doubling) {
+      if (doubling == 60) throw std::runtime_error("placeAtDistance: the distance never reaches the target");
+      hi *= 2;
+    }
     // Invariant: distance(lo) <= target <= distance(hi); distance is continuous, so a crossing lies between.
     for (int iteration = 0; iteration < 200; ++iteration) {
       const double mid = 0.5 * (lo + hi);

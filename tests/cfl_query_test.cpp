@@ -1,0 +1,570 @@
+// computeDistance and computeCollision on randomized poses against brute force over all triangle pairs
+// (cfl::bruteForceDistance; the kernels it uses are tested on their own) and, independently of every
+// library kernel, against the point-mesh reference of test_meshes.
+
+#include "cfl/cfl_query.h"
+#include "cfl/triangle_distance.h"
+#include "support/test_meshes.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace cfl {
+namespace {
+
+struct Shape {
+  std::string name;
+  TriangleMesh mesh;
+  MeshModel model;
+  CflModel cfl;
+  double diagonal = 0;
+};
+
+std::unique_ptr<Shape> makeShape(const std::string& name, TriangleMesh mesh, int resolution) {
+  auto shape = std::make_unique<Shape>();
+  shape->name = name;
+  shape->mesh = mesh;
+  shape->model = makeMeshModel(mesh);
+  BuildOptions options;
+  options.resolution = resolution;
+  shape->cfl = buildCflModel(std::move(mesh), options);
+  shape->diagonal = shape->model.bounds.diagonal();
+  return shape;
+}
+
+// Built once for the whole executable. Small meshes (100-400 triangles) keep brute force affordable over
+// a thousand poses; the bunny gets a handful of poses.
+const std::vector<std::unique_ptr<Shape>>& shapes() {
+  static const std::vector<std::unique_ptr<Shape>> all = [] {
+    std::vector<std::unique_ptr<Shape>> v;
+    v.push_back(makeShape("torus", test::makeTorus(1.0, 0.35, 12, 6), 12));
+    v.push_back(makeShape("knot", test::makeTorusKnot(2, 3, 0.5, 0.3, 36, 5), 12));
+    v.push_back(makeShape("soup", test::makeTriangleSoup(120, 99, 0.8, 0.3), 12));
+    v.push_back(makeShape("hemisphere", test::makeHemisphere(1.0, 5, 12), 12));
+    v.push_back(makeShape("messy", test::makeMessyMesh(), 12));
+    v.push_back(makeShape("wavy_sheet", test::makeWavySheet(1.0, 0.3, 10), 12));
+    v.push_back(makeShape("self_intersecting", test::makeSelfIntersectingMesh(), 12));
+    return v;
+  }();
+  return all;
+}
+
+const Shape& shape(const std::string& name) {
+  for (const auto& s : shapes()) {
+    if (s->name == name) return *s;
+  }
+  throw std::runtime_error("no shape " + name);
+}
+
+const Shape& bunny() {
+  static const std::unique_ptr<Shape> b = makeShape("bunny", test::loadBunny(), 16);
+  return *b;
+}
+
+// Collects failures and reports the first few in full, so that a systematic bug does not flood the log.
+class Failures {
+ public:
+  void add(const std::string& message) {
+    if (++count_ <= 8) ADD_FAILURE() << message;
+  }
+  int count() const { return count_; }
+
+ private:
+  int count_ = 0;
+};
+
+// The corners of triangle t of `model` at pose X (world frame).
+void worldTriangle(const MeshModel& model, int t, const Eigen::Isometry3d& X, Eigen::Vector3d out[3]) {
+  for (int k = 0; k < 3; ++k) out[k] = X * model.corners[t][k];
+}
+
+double pointToTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d tri[3]) {
+  return std::sqrt(test::referencePointTriangleSquaredDistance(p, tri[0], tri[1], tri[2]));
+}
+
+struct Pose {
+  Eigen::Isometry3d X_WA;
+  Eigen::Isometry3d X_WB;
+  std::string kind;
+};
+
+std::string describe(const Pose& pose, const Shape& a, const Shape& b) {
+  std::ostringstream out;
+  out.precision(17);
+  out << a.name << " vs " << b.name << " (" << pose.kind << ")\n  X_WA =\n" << pose.X_WA.matrix() << "\n  X_WB =\n"
+      << pose.X_WB.matrix();
+  return out.str();
+}
+
+// Checks `r` against the brute-force answer `truth`: same distance, points on the named triangles, the
+// named pair at that distance, and points mutually closest by the independent point reference.
+void checkResult(const DistanceResult& r, const DistanceResult& truth, const Shape& a, const Shape& b, const Pose& pose,
+                 const std::string& label, Failures& failures) {
+  const double tolerance = 1e-9 * std::max(a.diagonal, b.diagonal);
+  std::ostringstream problems;
+  problems.precision(17);
+  if (!(std::abs(r.distance - truth.distance) <= tolerance)) {
+    problems << "  distance " << r.distance << " != brute force " << truth.distance << " (error "
+             << r.distance - truth.distance << ")\n";
+  }
+  const int na = static_cast<int>(a.model.corners.size()), nb = static_cast<int>(b.model.corners.size());
+  if (r.triangle_a < 0 || r.triangle_a >= na || r.triangle_b < 0 || r.triangle_b >= nb) {
+    problems << "  triangle ids out of range: " << r.triangle_a << ", " << r.triangle_b << "\n";
+  } else {
+    Eigen::Vector3d ta[3], tb[3];
+    worldTriangle(a.model, r.triangle_a, pose.X_WA, ta);
+    worldTriangle(b.model, r.triangle_b, pose.X_WB, tb);
+    if (!(pointToTriangle(r.point_a, ta) <= tolerance)) {
+      problems << "  point_a is " << pointToTriangle(r.point_a, ta) << " off triangle_a " << r.triangle_a << "\n";
+    }
+    if (!(pointToTriangle(r.point_b, tb) <= tolerance)) {
+      problems << "  point_b is " << pointToTriangle(r.point_b, tb) << " off triangle_b " << r.triangle_b << "\n";
+    }
+    const double pair = std::sqrt(triangleTriangleSquaredDistance(ta, tb));
+    if (!(std::abs(pair - r.distance) <= tolerance)) {
+      problems << "  the returned pair is at " << pair << ", not at the returned distance " << r.distance << "\n";
+    }
+  }
+  if (!(std::abs((r.point_a - r.point_b).norm() - r.distance) <= tolerance)) {
+    problems << "  |point_a - point_b| = " << (r.point_a - r.point_b).norm() << " != distance " << r.distance << "\n";
+  }
+  // Independent of every library kernel: a closest point of A is at exactly the distance from B, and
+  // conversely (it is on A, so no closer than the minimum; it is that close to point_b).
+  const double a_to_b = test::referencePointMeshDistance(b.mesh, r.point_a, pose.X_WB);
+  const double b_to_a = test::referencePointMeshDistance(a.mesh, r.point_b, pose.X_WA);
+  if (!(std::abs(a_to_b - truth.distance) <= tolerance) || !(std::abs(b_to_a - truth.distance) <= tolerance)) {
+    problems << "  point reference: point_a is " << a_to_b << " from B and point_b " << b_to_a
+             << " from A, expected " << truth.distance << "\n";
+  }
+  if (!problems.str().empty()) failures.add(label + ": " + describe(pose, a, b) + "\n" + problems.str());
+}
+
+// Sanity check of the brute-force reference itself with the independent point reference: the distance
+// from any vertex of one mesh to the other is an upper bound, and the minimum over vertices is reached
+// when a closest pair involves a vertex.
+void checkReferenceWithPoints(const DistanceResult& truth, const Shape& a, const Shape& b, const Pose& pose,
+                              Failures& failures) {
+  const double tolerance = 1e-9 * std::max(a.diagonal, b.diagonal);
+  double vertex_bound = std::numeric_limits<double>::infinity();
+  for (const auto& t : b.mesh.triangles) {
+    for (int k = 0; k < 3; ++k) {
+      vertex_bound = std::min(vertex_bound, test::referencePointMeshDistance(a.mesh, pose.X_WB * b.mesh.vertices[t[k]],
+                                                                             pose.X_WA));
+    }
+  }
+  if (!(truth.distance <= vertex_bound + tolerance)) {
+    std::ostringstream out;
+    out << "brute force " << truth.distance << " exceeds the vertex-to-mesh bound " << vertex_bound << " for "
+        << describe(pose, a, b);
+    failures.add(out.str());
+  }
+}
+
+// A pose of B relative to A with the given separation, as a fraction of A's diagonal:
+// 0 overlaps, a negative fraction means "touching" (closest points brought together exactly).
+Pose makePose(const Shape& a, const Shape& b, double fraction, test::Rng& rng) {
+  Pose pose;
+  pose.X_WA = test::randomPose(rng, 2.0);
+  auto distance = [&](const Eigen::Isometry3d& X_WB) { return computeDistance(a.cfl, pose.X_WA, b.model, X_WB).distance; };
+  const Eigen::Vector3d center_a = pose.X_WA * a.model.bounds.center();
+  if (fraction < 0) {
+    pose.X_WB = test::placeAtDistance(distance, center_a, b.model.bounds, 0.02 * a.diagonal, 1e-3 * a.diagonal, rng);
+    const DistanceResult apart = bruteForceDistance(a.model, pose.X_WA, b.model, pose.X_WB);
+    pose.X_WB.translation() += apart.point_a - apart.point_b;
+    pose.kind = "touching";
+  } else {
+    const double target = fraction * a.diagonal;
+    pose.X_WB = test::placeAtDistance(distance, center_a, b.model.bounds, target, 0.05 * target, rng);
+    pose.kind = fraction == 0 ? "overlapping" : "separation " + std::to_string(fraction) + " diagonal";
+  }
+  return pose;
+}
+
+const double kSeparations[] = {0.0, -1.0, 0.005, 0.02, 0.1, 0.5, 3.0};
+
+struct PairCase {
+  const char* a;
+  const char* b;
+};
+
+// Every mesh appears as A and as B, and every mesh meets a differently shaped partner.
+const PairCase kPairs[] = {
+    {"torus", "knot"},       {"knot", "soup"},        {"soup", "hemisphere"},         {"hemisphere", "messy"},
+    {"messy", "wavy_sheet"}, {"wavy_sheet", "torus"}, {"self_intersecting", "knot"},  {"knot", "knot"},
+};
+
+// The bulk of the suite: ~1100 poses, 4 queries each (both modes, both overloads).
+TEST(ComputeDistance, MatchesBruteForceOnRandomPosesInBothModesAndOverloads) {
+  test::Rng rng(2024);
+  Failures failures;
+  int poses = 0, overlapping = 0;
+  for (const PairCase& pair : kPairs) {
+    const Shape& a = shape(pair.a);
+    const Shape& b = shape(pair.b);
+    for (double fraction : kSeparations) {
+      for (int n = 0; n < 20; ++n) {
+        const Pose pose = makePose(a, b, fraction, rng);
+        const DistanceResult truth = bruteForceDistance(a.model, pose.X_WA, b.model, pose.X_WB);
+        ++poses;
+        if (truth.distance == 0) ++overlapping;
+        if (n % 4 == 0) checkReferenceWithPoints(truth, a, b, pose, failures);
+        for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+          DistanceOptions options;
+          options.mode = mode;
+          const std::string mode_name = mode == QueryMode::kHierarchical ? "hierarchical" : "paper";
+          checkResult(computeDistance(a.cfl, pose.X_WA, b.model, pose.X_WB, options), truth, a, b, pose,
+                      mode_name + ", B as MeshModel", failures);
+          checkResult(computeDistance(a.cfl, pose.X_WA, b.cfl, pose.X_WB, options), truth, a, b, pose,
+                      mode_name + ", B as CflModel", failures);
+        }
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0) << "of " << poses << " poses";
+  // The overlapping and touching poses must really have produced contact, or the suite tests less than it says.
+  EXPECT_GE(overlapping, static_cast<int>(std::size(kPairs)) * 20) << "too few overlapping poses";
+}
+
+TEST(ComputeDistance, MatchesBruteForceOnTheBunny) {
+  test::Rng rng(77);
+  Failures failures;
+  const Shape& a = bunny();
+  const Shape& b = shape("torus");
+  for (double fraction : kSeparations) {
+    for (int n = 0; n < 2; ++n) {
+      // The bunny as A (with CFLs) and as B.
+      for (bool bunny_is_a : {true, false}) {
+        const Shape& first = bunny_is_a ? a : b;
+        const Shape& second = bunny_is_a ? b : a;
+        const Pose pose = makePose(first, second, fraction, rng);
+        const DistanceResult truth = bruteForceDistance(first.model, pose.X_WA, second.model, pose.X_WB);
+        for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+          DistanceOptions options;
+          options.mode = mode;
+          checkResult(computeDistance(first.cfl, pose.X_WA, second.model, pose.X_WB, options), truth, first, second,
+                      pose, "MeshModel B", failures);
+          checkResult(computeDistance(first.cfl, pose.X_WA, second.cfl, pose.X_WB, options), truth, first, second,
+                      pose, "CflModel B", failures);
+        }
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+}
+
+TEST(ComputeDistance, OverlappingMeshesGiveZeroWithOnePointOnBothTriangles) {
+  test::Rng rng(8);
+  Failures failures;
+  int overlaps = 0;
+  for (const PairCase& pair : kPairs) {
+    const Shape& a = shape(pair.a);
+    const Shape& b = shape(pair.b);
+    for (int n = 0; n < 10; ++n) {
+      const Pose pose = makePose(a, b, 0.0, rng);
+      const DistanceResult truth = bruteForceDistance(a.model, pose.X_WA, b.model, pose.X_WB);
+      if (truth.distance != 0) continue;
+      ++overlaps;
+      const double tolerance = 1e-9 * std::max(a.diagonal, b.diagonal);
+      for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+        DistanceOptions options;
+        options.mode = mode;
+        const DistanceResult r = computeDistance(a.cfl, pose.X_WA, b.model, pose.X_WB, options);
+        Eigen::Vector3d ta[3], tb[3];
+        if (r.triangle_a < 0 || r.triangle_b < 0) {
+          failures.add("no triangle pair returned for " + describe(pose, a, b));
+          continue;
+        }
+        worldTriangle(a.model, r.triangle_a, pose.X_WA, ta);
+        worldTriangle(b.model, r.triangle_b, pose.X_WB, tb);
+        if (!(r.distance <= tolerance && (r.point_a - r.point_b).norm() <= tolerance &&
+              pointToTriangle(r.point_a, ta) <= tolerance && pointToTriangle(r.point_a, tb) <= tolerance)) {
+          std::ostringstream out;
+          out << "overlap: distance " << r.distance << ", |point_a - point_b| " << (r.point_a - r.point_b).norm()
+              << ", point_a off triangle_a by " << pointToTriangle(r.point_a, ta) << ", off triangle_b by "
+              << pointToTriangle(r.point_a, tb) << " for " << describe(pose, a, b);
+          failures.add(out.str());
+        }
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+  EXPECT_GE(overlaps, 40);
+}
+
+TEST(ComputeDistance, IdenticalMeshesAtIdenticalPosesAreAtZero) {
+  test::Rng rng(3);
+  for (const auto& s : shapes()) {
+    const Eigen::Isometry3d X = test::randomPose(rng, 5.0);
+    const double tolerance = 1e-9 * s->diagonal;
+    for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+      DistanceOptions options;
+      options.mode = mode;
+      for (const DistanceResult& r : {computeDistance(s->cfl, X, s->model, X, options),
+                                      computeDistance(s->cfl, X, s->cfl, X, options)}) {
+        EXPECT_LE(r.distance, tolerance) << s->name;
+        EXPECT_LE((r.point_a - r.point_b).norm(), tolerance) << s->name;
+        ASSERT_GE(r.triangle_a, 0) << s->name;
+        ASSERT_GE(r.triangle_b, 0) << s->name;
+        Eigen::Vector3d ta[3], tb[3];
+        worldTriangle(s->model, r.triangle_a, X, ta);
+        worldTriangle(s->model, r.triangle_b, X, tb);
+        EXPECT_LE(pointToTriangle(r.point_a, ta), tolerance) << s->name;
+        EXPECT_LE(pointToTriangle(r.point_b, tb), tolerance) << s->name;
+      }
+    }
+  }
+}
+
+TEST(ComputeDistance, MeshEntirelyOutsideTheGridIsExact) {
+  test::Rng rng(12);
+  Failures failures;
+  int outside = 0;
+  for (const PairCase& pair : kPairs) {
+    const Shape& a = shape(pair.a);
+    const Shape& b = shape(pair.b);
+    for (double fraction : {0.6, 1.0, 3.0, 50.0}) {
+      for (int n = 0; n < 3; ++n) {
+        const Pose pose = makePose(a, b, fraction, rng);
+        // Only poses where every vertex of B is outside A's grid count for this property.
+        const Aabb grid = a.cfl.grid.bounds();
+        const Eigen::Isometry3d X_AB = pose.X_WA.inverse() * pose.X_WB;
+        bool all_outside = true;
+        for (const auto& v : b.mesh.vertices) {
+          const Eigen::Vector3d p = X_AB * v;
+          if ((grid.min.array() <= p.array()).all() && (p.array() <= grid.max.array()).all()) all_outside = false;
+        }
+        if (!all_outside) continue;
+        ++outside;
+        const DistanceResult truth = bruteForceDistance(a.model, pose.X_WA, b.model, pose.X_WB);
+        for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+          DistanceOptions options;
+          options.mode = mode;
+          checkResult(computeDistance(a.cfl, pose.X_WA, b.model, pose.X_WB, options), truth, a, b, pose, "outside grid",
+                      failures);
+          checkResult(computeDistance(a.cfl, pose.X_WA, b.cfl, pose.X_WB, options), truth, a, b, pose,
+                      "outside grid, CflModel B", failures);
+        }
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+  EXPECT_GE(outside, 40) << "too few poses with B outside the grid";
+}
+
+TEST(ComputeDistance, ToleranceGuaranteeHoldsAndTheDistanceIsThatOfTheReturnedPair) {
+  test::Rng rng(55);
+  Failures failures;
+  for (const PairCase& pair : kPairs) {
+    const Shape& a = shape(pair.a);
+    const Shape& b = shape(pair.b);
+    const double tolerance = 1e-9 * std::max(a.diagonal, b.diagonal);
+    for (double fraction : {0.0, 0.005, 0.1, 0.5}) {
+      const Pose pose = makePose(a, b, fraction, rng);
+      const double truth = bruteForceDistance(a.model, pose.X_WA, b.model, pose.X_WB).distance;
+      for (double rel_err : {0.0, 0.05, 0.5}) {
+        for (double abs_err : {0.0, 0.01 * a.diagonal, 0.2 * a.diagonal}) {
+          for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+            DistanceOptions options;
+            options.mode = mode;
+            options.rel_err = rel_err;
+            options.abs_err = abs_err;
+            for (const DistanceResult& r : {computeDistance(a.cfl, pose.X_WA, b.model, pose.X_WB, options),
+                                            computeDistance(a.cfl, pose.X_WA, b.cfl, pose.X_WB, options)}) {
+              std::ostringstream problems;
+              if (!(r.distance >= truth - tolerance)) problems << " below the true distance;";
+              if (!(r.distance <= truth + abs_err + tolerance)) problems << " above true + abs_err;";
+              if (!(r.distance <= truth * (1 + rel_err) + tolerance)) problems << " above true * (1 + rel_err);";
+              if (r.triangle_a < 0 || r.triangle_b < 0) {
+                problems << " no pair returned;";
+              } else {
+                Eigen::Vector3d ta[3], tb[3];
+                worldTriangle(a.model, r.triangle_a, pose.X_WA, ta);
+                worldTriangle(b.model, r.triangle_b, pose.X_WB, tb);
+                if (!(std::abs(std::sqrt(triangleTriangleSquaredDistance(ta, tb)) - r.distance) <= tolerance)) {
+                  problems << " the returned pair is not at the returned distance;";
+                }
+                if (!(pointToTriangle(r.point_a, ta) <= tolerance && pointToTriangle(r.point_b, tb) <= tolerance &&
+                      std::abs((r.point_a - r.point_b).norm() - r.distance) <= tolerance)) {
+                  problems << " points inconsistent with the pair;";
+                }
+              }
+              if (!problems.str().empty()) {
+                std::ostringstream out;
+                out << "rel_err " << rel_err << " abs_err " << abs_err << ": distance " << r.distance << ", true "
+                    << truth << ":" << problems.str() << " " << describe(pose, a, b);
+                failures.add(out.str());
+              }
+            }
+          }
+        }
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+}
+
+TEST(ComputeDistance, WarmStartHintsNeverChangeTheAnswer) {
+  test::Rng rng(66);
+  Failures failures;
+  for (const PairCase& pair : kPairs) {
+    const Shape& a = shape(pair.a);
+    const Shape& b = shape(pair.b);
+    const int na = static_cast<int>(a.mesh.triangles.size()), nb = static_cast<int>(b.mesh.triangles.size());
+    for (double fraction : {0.0, 0.005, 0.1, 3.0}) {
+      const Pose pose = makePose(a, b, fraction, rng);
+      const DistanceResult truth = bruteForceDistance(a.model, pose.X_WA, b.model, pose.X_WB);
+      std::uniform_int_distribution<int> random_a(0, na - 1), random_b(0, nb - 1);
+      const std::pair<int, int> hints[] = {
+          {truth.triangle_a, truth.triangle_b},  // the answer itself
+          {random_a(rng), random_b(rng)},        // valid but far from the answer
+          {na - 1, nb - 1},                      // last valid ids
+          {-1, -1},                              // no hint
+          {-5, 3},                               // negative
+          {na, 0},                               // one past the end of A
+          {0, nb},                               // one past the end of B
+          {INT_MAX, INT_MIN},
+      };
+      for (const auto& [hint_a, hint_b] : hints) {
+        for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+          DistanceOptions options;
+          options.mode = mode;
+          options.hint_triangle_a = hint_a;
+          options.hint_triangle_b = hint_b;
+          const std::string label = "hint (" + std::to_string(hint_a) + ", " + std::to_string(hint_b) + ")";
+          checkResult(computeDistance(a.cfl, pose.X_WA, b.model, pose.X_WB, options), truth, a, b, pose, label,
+                      failures);
+          checkResult(computeDistance(a.cfl, pose.X_WA, b.cfl, pose.X_WB, options), truth, a, b, pose,
+                      label + ", CflModel B", failures);
+        }
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+}
+
+TEST(ComputeDistance, ConcurrentQueriesOnSharedModelsGiveTheSequentialAnswers) {
+  const Shape& a = shape("knot");
+  const Shape& b = shape("messy");
+  test::Rng rng(91);
+  std::vector<Pose> poses;
+  for (int n = 0; n < 40; ++n) poses.push_back(makePose(a, b, kSeparations[n % 7], rng));
+  std::vector<DistanceResult> sequential;
+  for (const Pose& pose : poses) sequential.push_back(computeDistance(a.cfl, pose.X_WA, b.cfl, pose.X_WB));
+  std::vector<DistanceResult> concurrent(poses.size());
+  auto work = [&](std::size_t first) {
+    for (int repeat = 0; repeat < 5; ++repeat) {
+      for (std::size_t i = first; i < poses.size(); i += 2) {
+        concurrent[i] = computeDistance(a.cfl, poses[i].X_WA, b.cfl, poses[i].X_WB);
+      }
+    }
+  };
+  std::thread t0(work, 0), t1(work, 1);
+  t0.join();
+  t1.join();
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    EXPECT_EQ(concurrent[i].distance, sequential[i].distance) << "pose " << i;
+    EXPECT_EQ(concurrent[i].triangle_a, sequential[i].triangle_a) << "pose " << i;
+    EXPECT_EQ(concurrent[i].triangle_b, sequential[i].triangle_b) << "pose " << i;
+  }
+}
+
+TEST(ComputeCollision, AgreesWithBruteForceAndReturnsRealContacts) {
+  test::Rng rng(101);
+  Failures failures;
+  int colliding = 0, separate = 0;
+  for (const PairCase& pair : kPairs) {
+    const Shape& a = shape(pair.a);
+    const Shape& b = shape(pair.b);
+    const double tolerance = 1e-9 * std::max(a.diagonal, b.diagonal);
+    for (double fraction : {0.0, 0.0, 0.005, 0.02, 0.5}) {
+      for (int n = 0; n < 5; ++n) {
+        const Pose pose = makePose(a, b, fraction, rng);
+        const double truth = bruteForceDistance(a.model, pose.X_WA, b.model, pose.X_WB).distance;
+        // Within rounding of touching the answer may go either way; every other pose has one right answer.
+        if (truth > 0 && truth <= tolerance) continue;
+        const bool expected = truth == 0;
+        (expected ? colliding : separate)++;
+        const bool without_contacts = computeCollision(a.model, pose.X_WA, b.model, pose.X_WB);
+        if (without_contacts != expected) {
+          failures.add(std::string("collision ") + (without_contacts ? "true" : "false") + " but brute-force distance " +
+                       std::to_string(truth) + " for " + describe(pose, a, b));
+        }
+        for (std::size_t max_contacts : {std::size_t(1), std::size_t(7), std::size_t(100000)}) {
+          std::vector<Contact> contacts;
+          const bool with_contacts = computeCollision(a.model, pose.X_WA, b.model, pose.X_WB, max_contacts, &contacts);
+          std::ostringstream problems;
+          if (with_contacts != expected) problems << " wrong answer " << with_contacts << ";";
+          if (contacts.size() > max_contacts) problems << " " << contacts.size() << " contacts > max;";
+          if (expected != !contacts.empty()) problems << " " << contacts.size() << " contacts;";
+          for (const Contact& c : contacts) {
+            if (c.triangle_a < 0 || c.triangle_a >= static_cast<int>(a.model.corners.size()) || c.triangle_b < 0 ||
+                c.triangle_b >= static_cast<int>(b.model.corners.size())) {
+              problems << " contact ids out of range;";
+              continue;
+            }
+            Eigen::Vector3d ta[3], tb[3];
+            worldTriangle(a.model, c.triangle_a, pose.X_WA, ta);
+            worldTriangle(b.model, c.triangle_b, pose.X_WB, tb);
+            const double off_a = pointToTriangle(c.position, ta), off_b = pointToTriangle(c.position, tb);
+            if (!(off_a <= tolerance && off_b <= tolerance)) {
+              problems << " contact (" << c.triangle_a << ", " << c.triangle_b << ") position is " << off_a
+                       << " off A and " << off_b << " off B;";
+            }
+          }
+          if (!problems.str().empty()) {
+            failures.add("max_contacts " + std::to_string(max_contacts) + ":" + problems.str() + " " +
+                         describe(pose, a, b));
+          }
+        }
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+  EXPECT_GE(colliding, 50);
+  EXPECT_GE(separate, 50);
+}
+
+TEST(ComputeCollision, ContactsListEveryIntersectingPairWhenUnbounded) {
+  // With room for every contact, the contacts are exactly the intersecting pairs found by testing all
+  // pairs with the kernel's predicate (itself tested in triangle_distance_test), each pair once.
+  test::Rng rng(202);
+  Failures failures;
+  for (const PairCase& pair : kPairs) {
+    const Shape& a = shape(pair.a);
+    const Shape& b = shape(pair.b);
+    for (int n = 0; n < 3; ++n) {
+      const Pose pose = makePose(a, b, 0.0, rng);
+      std::vector<std::pair<int, int>> expected;
+      for (int i = 0; i < static_cast<int>(a.model.corners.size()); ++i) {
+        Eigen::Vector3d ta[3];
+        worldTriangle(a.model, i, pose.X_WA, ta);
+        for (int j = 0; j < static_cast<int>(b.model.corners.size()); ++j) {
+          Eigen::Vector3d tb[3];
+          worldTriangle(b.model, j, pose.X_WB, tb);
+          if (trianglesIntersect(ta, tb)) expected.emplace_back(i, j);
+        }
+      }
+      std::vector<Contact> contacts;
+      computeCollision(a.model, pose.X_WA, b.model, pose.X_WB, expected.size() + 1000, &contacts);
+      std::vector<std::pair<int, int>> found;
+      for (const Contact& c : contacts) found.emplace_back(c.triangle_a, c.triangle_b);
+      std::sort(found.begin(), found.end());
+      if (found != expected) {
+        failures.add("found " + std::to_string(found.size()) + " intersecting pairs, expected " +
+                     std::to_string(expected.size()) + " for " + describe(pose, a, b));
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+}
+
+}  // namespace
+}  // namespace cfl

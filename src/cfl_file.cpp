@@ -230,12 +230,15 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
          std::to_string(model.list_triangles.size()) + " entries");
   }
   const std::size_t list_count = offsets.size() - 1;
+  // Offsets first, all of them: a list's contents are only meaningful once its bounds are.
+  for (std::size_t list = 0; list < list_count; ++list) {
+    if (offsets[list + 1] < offsets[list]) {
+      fail("list_offsets not increasing: list " + std::to_string(list) + " starts at " + std::to_string(offsets[list]) +
+           " and ends at " + std::to_string(offsets[list + 1]));
+    }
+  }
   for (std::size_t list = 0; list < list_count; ++list) {
     const std::uint32_t begin = offsets[list], end = offsets[list + 1];
-    if (end < begin) {
-      fail("list_offsets not increasing: list " + std::to_string(list) + " starts at " + std::to_string(begin) +
-           " and ends at " + std::to_string(end));
-    }
     if (end == begin) fail("list " + std::to_string(list) + " is empty (every CFL holds at least one triangle)");
     std::int64_t previous = -1;
     for (std::uint32_t i = begin; i < end; ++i) {

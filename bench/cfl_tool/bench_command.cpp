@@ -1,0 +1,301 @@
+// `cfl bench`: CFL against FCL 0.7 BVHModel<OBBRSS> and BVHModel<RSS>, in one process, on the same poses.
+
+#include "cfl/cfl_query.h"
+#include "cfl/error.h"
+#include "commands.h"
+#include "fcl_baseline.h"
+#include "measure.h"
+#include "pose_generator.h"
+#include "tool_args.h"
+#include "tool_support.h"
+
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+
+extern char** environ;
+
+namespace cfl::tool {
+namespace {
+
+constexpr const char* kBenchUsage = R"(usage: cfl bench [A [B]] [--queries N] [--bands LIST] [--resolution N] [--seed S]
+                 [--repeats R] [--threads T] [--json OUT.json] [--plot OUT.png]
+
+Times exact mesh-mesh distance queries of CFL (A's voxels, B as a plain mesh with its Bvh) against FCL 0.7
+fcl::distance on BVHModel<OBBRSS> and BVHModel<RSS> (enable_nearest_points = true), in one process, on the
+same poses. Without meshes: the bundled bunny against itself; with A only: A against itself.
+
+Poses: per band, N random rotations and directions of B about A; the offset along the direction is set by
+bisection so that the FCL OBBRSS distance is the band's fraction of A's bounding-box diagonal (within 1%);
+band 0 means overlapping. Every query's CFL distance is checked against OBBRSS: the run FAILS (status 1) if
+any differs by more than 1e-9 of the diagonal.
+
+Columns, per band:
+  dist/diag        median achieved distance / A's bounding-box diagonal
+  CFL, OBBRSS, RSS median and 90th percentile of the microseconds per query (each pose timed R times per
+                   method, methods interleaved; the per-pose median enters the statistics)
+  OBBRSS/CFL       median OBBRSS time / median CFL time (> 1: CFL is faster)
+  CFL N_p, N_v     mean triangle pairs tested and voxel + bounding-volume tests per CFL query
+  FCL N_p, N_v     the same for OBBRSS, counted by FCL's own traversal statistics (num_leaf_tests,
+                   num_bv_tests) in a separate untimed run of the same traversal
+  max|d|/diag      largest |CFL - OBBRSS| distance difference / diagonal
+
+  --queries N      poses per band (default 200)
+  --bands LIST     comma-separated fractions of the diagonal (default 0,0.005,0.02,0.1,0.5)
+  --resolution N   CFL grid resolution; 0 (default) picks one
+  --seed S         random seed (default 1); the same seed gives the same poses here and in the
+                   Google Benchmark suite cfl_distance_bench
+  --repeats R      timed runs per pose and method (default 3)
+  --threads T      CFL build threads (default: all)
+  --json OUT       also write every figure as JSON
+  --plot OUT.png   also draw median time per band and method on a log axis (needs gnuplot)
+)";
+
+struct BandReport {
+  double band = 0;
+  double target = 0;
+  double achieved_median = 0;
+  struct Figures {
+    double median_us = 0, p90_us = 0;
+    double mean_np = -1, mean_nv = -1;  // -1: not counted
+  };
+  Figures cfl, obbrss, rss;
+  double speedup = 0;
+  double max_difference = 0;
+};
+
+std::string findExecutable(const std::string& name) {
+  const char* path = std::getenv("PATH");
+  std::string dirs = path != nullptr ? path : "/usr/bin:/bin";
+  std::size_t start = 0;
+  while (start <= dirs.size()) {
+    const std::size_t colon = dirs.find(':', start);
+    std::string dir = dirs.substr(start, colon == std::string::npos ? std::string::npos : colon - start);
+    if (dir.empty()) dir = ".";
+    const std::string candidate = dir + "/" + name;
+    if (::access(candidate.c_str(), X_OK) == 0) return candidate;
+    if (colon == std::string::npos) break;
+    start = colon + 1;
+  }
+  return "";
+}
+
+std::string jsonString(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      out += format("\\u%04x", c);
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
+std::string jsonNumber(double v) { return std::isfinite(v) ? format("%.9g", v) : "null"; }
+
+void writePlot(const std::string& png, const std::vector<BandReport>& bands, const std::string& title) {
+  const std::string gnuplot = findExecutable("gnuplot");
+  if (gnuplot.empty()) {
+    throw Error("--plot needs gnuplot, which is not in PATH (Debian: apt-get install gnuplot-nox)");
+  }
+  const std::string data_path = png + ".dat";
+  const std::string script_path = png + ".gp";
+  {
+    std::ofstream data(data_path);
+    data << "# band cfl_median cfl_p90 obbrss_median obbrss_p90 rss_median rss_p90 (microseconds)\n";
+    for (const auto& b : bands) {
+      data << format("%g %.6g %.6g %.6g %.6g %.6g %.6g\n", b.band, b.cfl.median_us, b.cfl.p90_us, b.obbrss.median_us,
+                     b.obbrss.p90_us, b.rss.median_us, b.rss.p90_us);
+    }
+    if (!data) throw Error(data_path + ": cannot write the plot data");
+  }
+  {
+    std::ofstream script(script_path);
+    script << "set terminal pngcairo size 900,560 enhanced font 'Sans,11'\n"
+           << "set output '" << png << "'\n"
+           << "set title " << jsonString(title) << "\n"
+           << "set logscale y\n"
+           << "set ylabel 'microseconds per query (median; bar to p90)'\n"
+           << "set xlabel 'separation band (fraction of the bounding-box diagonal; 0 = overlapping)'\n"
+           << "set grid ytics mytics\n"
+           << "set key top left box opaque\n"
+           << "set offsets 0.3, 0.3, 0, 0\n"
+           << "plot '" << data_path << "' using ($0-0.1):2:2:3 with yerrorlines lw 2 pt 7 title 'CFL', \\\n"
+           << "     '' using ($0):4:4:5:xtic(1) with yerrorlines lw 2 pt 5 title 'FCL OBBRSS', \\\n"
+           << "     '' using ($0+0.1):6:6:7 with yerrorlines lw 2 pt 9 title 'FCL RSS'\n";
+    if (!script) throw Error(script_path + ": cannot write the gnuplot script");
+  }
+  pid_t pid = 0;
+  std::vector<char*> argv = {const_cast<char*>(gnuplot.c_str()), const_cast<char*>(script_path.c_str()), nullptr};
+  if (posix_spawn(&pid, gnuplot.c_str(), nullptr, nullptr, argv.data(), environ) != 0) {
+    throw Error("could not start " + gnuplot);
+  }
+  int status = 0;
+  if (waitpid(pid, &status, 0) < 0 || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    throw Error("gnuplot failed on " + script_path + " (kept for inspection)");
+  }
+  std::remove(script_path.c_str());
+  std::remove(data_path.c_str());
+}
+
+}  // namespace
+
+int runBench(const std::vector<std::string>& raw, Streams io) {
+  const ParsedArgs args = parseArgs(
+      raw, {{"queries"}, {"bands"}, {"resolution"}, {"seed"}, {"repeats"}, {"threads"}, {"json"}, {"plot"}});
+  if (args.has("help")) {
+    io.out << kBenchUsage;
+    return 0;
+  }
+  if (args.positionals.size() > 2) throw UsageError("expected at most two meshes, got " + std::to_string(args.positionals.size()));
+  const int queries = int(parseInteger(args.get("queries").value_or("200"), "--queries", 1, 1000000));
+  const std::vector<double> bands =
+      args.has("bands") ? parseBandList(*args.get("bands"), "--bands") : bench::defaultBands();
+  const std::uint64_t seed = std::uint64_t(parseInteger(args.get("seed").value_or("1"), "--seed", 0, INT64_MAX));
+  const int repeats = int(parseInteger(args.get("repeats").value_or("3"), "--repeats", 1, 1000));
+  BuildOptions options;
+  options.resolution = int(parseInteger(args.get("resolution").value_or("0"), "--resolution", 0, 4096));
+  options.threads = int(parseInteger(args.get("threads").value_or("0"), "--threads", 0, 1024));
+  const auto json_path = args.get("json");
+  const auto plot_path = args.get("plot");
+  if (plot_path && findExecutable("gnuplot").empty()) {
+    throw Error("--plot needs gnuplot, which is not in PATH (Debian: apt-get install gnuplot-nox)");
+  }
+
+  const std::string path_a = args.positionals.empty() ? findDataFile("bunny.obj") : args.positionals[0];
+  const std::string path_b = args.positionals.size() < 2 ? path_a : args.positionals[1];
+
+  const CflModel cfl_a = obtainCflModel(path_a, options, io.err);
+  const TriangleMesh& mesh_a = cfl_a.geometry.mesh;
+  auto start = std::chrono::steady_clock::now();
+  const MeshModel model_b = makeMeshModel(readMeshArgument(path_b));
+  const double model_b_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const bench::FclModel obbrss_a(mesh_a, bench::FclBv::kOBBRSS), obbrss_b(model_b.mesh, bench::FclBv::kOBBRSS);
+  const bench::FclModel rss_a(mesh_a, bench::FclBv::kRSS), rss_b(model_b.mesh, bench::FclBv::kRSS);
+  const double diagonal = cfl_a.geometry.bounds.diagonal();
+  const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
+
+  io.out << format("cfl bench: A = %s (%zu triangles), B = %s (%zu triangles), A's diagonal %g\n", path_a.c_str(),
+                   mesh_a.triangles.size(), path_b.c_str(), model_b.mesh.triangles.size(), diagonal);
+  io.out << format("build: CFL %.3f s (resolution %d, %lld voxels, avg CFL %.2f, %.1f MB); B's mesh model %.4f s; "
+                   "FCL OBBRSS %.4f s; FCL RSS %.4f s (A's structure; B's took %.4f s and %.4f s)\n",
+                   cfl_a.statistics.build_seconds, cfl_a.statistics.resolution,
+                   static_cast<long long>(cfl_a.statistics.voxel_count), cfl_a.statistics.average_list_length,
+                   double(cfl_a.statistics.memory_bytes) / (1 << 20), model_b_seconds, obbrss_a.buildSeconds(),
+                   rss_a.buildSeconds(), obbrss_b.buildSeconds(), rss_b.buildSeconds());
+  io.out << format("queries: %d poses per band, seed %llu, each timed %d times per method (interleaved), "
+                   "microseconds per query\n\n",
+                   queries, static_cast<unsigned long long>(seed), repeats);
+  io.out << format("%-7s %9s | %8s %8s | %8s %8s | %8s %8s | %10s | %8s %8s | %8s %8s | %11s\n", "band",
+                   "dist/diag", "CFL med", "p90", "OBBRSS", "p90", "RSS", "p90", "OBBRSS/CFL", "CFL N_p", "N_v",
+                   "FCL N_p", "N_v", "max|d|/diag");
+  io.out.flush();
+
+  const bench::DistanceFunction baseline = [&](const Eigen::Isometry3d& X_WB) {
+    return bench::fclDistance(obbrss_a, I, obbrss_b, X_WB).distance;
+  };
+  std::vector<TimedMethod> methods = {
+      {"CFL", [&](const Eigen::Isometry3d& X_WB) { return computeDistance(cfl_a, I, model_b, X_WB).distance; }},
+      {"OBBRSS", [&](const Eigen::Isometry3d& X_WB) { return bench::fclDistance(obbrss_a, I, obbrss_b, X_WB).distance; }},
+      {"RSS", [&](const Eigen::Isometry3d& X_WB) { return bench::fclDistance(rss_a, I, rss_b, X_WB).distance; }},
+  };
+
+  std::vector<BandReport> reports;
+  bool passed = true;
+  for (double band : bands) {
+    const bench::BandPoses poses =
+        bench::generateBandPoses(cfl_a.geometry.bounds, model_b.bounds, band, queries, seed, baseline);
+    const std::vector<MethodSamples> samples = timeMethods(poses.poses, methods, repeats);
+    BandReport r;
+    r.band = band;
+    r.target = poses.target_distance;
+    r.achieved_median = bench::median(poses.distances);
+    BandReport::Figures* figures[] = {&r.cfl, &r.obbrss, &r.rss};
+    for (int m = 0; m < 3; ++m) {
+      figures[m]->median_us = bench::median(samples[m].micros);
+      figures[m]->p90_us = bench::percentile(samples[m].micros, 0.9);
+    }
+    std::vector<double> cfl_np, cfl_nv, fcl_np, fcl_nv;
+    for (std::size_t i = 0; i < poses.poses.size(); ++i) {
+      r.max_difference = std::max(r.max_difference, std::abs(samples[0].distances[i] - samples[1].distances[i]));
+      if (std::isnan(samples[0].distances[i])) r.max_difference = INFINITY;
+      const DistanceResult counted = computeDistance(cfl_a, I, model_b, poses.poses[i]);
+      cfl_np.push_back(double(counted.counters.triangle_pairs));
+      cfl_nv.push_back(double(counted.counters.voxel_tests));
+      const bench::FclCountedDistance fcl = bench::fclCountedDistance(obbrss_a, I, obbrss_b, poses.poses[i]);
+      fcl_np.push_back(double(fcl.triangle_pairs));
+      fcl_nv.push_back(double(fcl.bv_tests));
+    }
+    r.cfl.mean_np = mean(cfl_np);
+    r.cfl.mean_nv = mean(cfl_nv);
+    r.obbrss.mean_np = mean(fcl_np);
+    r.obbrss.mean_nv = mean(fcl_nv);
+    r.speedup = r.cfl.median_us > 0 ? r.obbrss.median_us / r.cfl.median_us : 0;
+    const bool ok = r.max_difference <= 1e-9 * diagonal;
+    passed = passed && ok;
+    io.out << format("%-7g %9.4g | %8.1f %8.1f | %8.1f %8.1f | %8.1f %8.1f | %9.1fx | %8.1f %8.0f | %8.1f %8.0f | %11.2g%s\n",
+                     band, r.achieved_median / diagonal, r.cfl.median_us, r.cfl.p90_us, r.obbrss.median_us,
+                     r.obbrss.p90_us, r.rss.median_us, r.rss.p90_us, r.speedup, r.cfl.mean_np, r.cfl.mean_nv,
+                     r.obbrss.mean_np, r.obbrss.mean_nv, r.max_difference / diagonal, ok ? "" : "  <-- MISMATCH");
+    io.out.flush();
+    reports.push_back(r);
+  }
+
+  if (json_path) {
+    std::ofstream json(*json_path);
+    json << "{\n  \"mesh_a\": " << jsonString(path_a) << ",\n  \"mesh_b\": " << jsonString(path_b)
+         << ",\n  \"triangles_a\": " << mesh_a.triangles.size() << ",\n  \"triangles_b\": " << model_b.mesh.triangles.size()
+         << ",\n  \"diagonal\": " << jsonNumber(diagonal) << ",\n  \"queries_per_band\": " << queries
+         << ",\n  \"repeats\": " << repeats << ",\n  \"seed\": " << seed
+         << ",\n  \"cfl_model\": {\"resolution\": " << cfl_a.statistics.resolution
+         << ", \"voxels\": " << cfl_a.statistics.voxel_count
+         << ", \"average_list_length\": " << jsonNumber(cfl_a.statistics.average_list_length)
+         << ", \"memory_bytes\": " << cfl_a.statistics.memory_bytes << "},\n  \"build_seconds\": {\"cfl\": "
+         << jsonNumber(cfl_a.statistics.build_seconds) << ", \"cfl_mesh_model_b\": " << jsonNumber(model_b_seconds)
+         << ", \"fcl_obbrss\": " << jsonNumber(obbrss_a.buildSeconds()) << ", \"fcl_rss\": "
+         << jsonNumber(rss_a.buildSeconds()) << "},\n  \"bands\": [\n";
+    for (std::size_t i = 0; i < reports.size(); ++i) {
+      const BandReport& r = reports[i];
+      auto figures = [&](const BandReport::Figures& f) {
+        std::string s = "{\"median_us\": " + jsonNumber(f.median_us) + ", \"p90_us\": " + jsonNumber(f.p90_us);
+        if (f.mean_np >= 0) s += ", \"mean_np\": " + jsonNumber(f.mean_np) + ", \"mean_nv\": " + jsonNumber(f.mean_nv);
+        return s + "}";
+      };
+      json << "    {\"band\": " << jsonNumber(r.band) << ", \"target_distance\": " << jsonNumber(r.target)
+           << ", \"median_distance\": " << jsonNumber(r.achieved_median) << ",\n     \"cfl\": " << figures(r.cfl)
+           << ",\n     \"obbrss\": " << figures(r.obbrss) << ",\n     \"rss\": " << figures(r.rss)
+           << ",\n     \"speedup_obbrss_over_cfl\": " << jsonNumber(r.speedup)
+           << ", \"max_abs_difference\": " << jsonNumber(r.max_difference) << "}"
+           << (i + 1 < reports.size() ? ",\n" : "\n");
+    }
+    json << "  ],\n  \"passed\": " << (passed ? "true" : "false") << "\n}\n";
+    if (!json) throw Error(*json_path + ": cannot write the JSON report");
+    io.out << "\nwrote " << *json_path << '\n';
+  }
+  if (plot_path) {
+    const std::string title = format("%s vs %s: exact distance query time (%d poses per band)",
+                                     path_a.substr(path_a.rfind('/') + 1).c_str(),
+                                     path_b.substr(path_b.rfind('/') + 1).c_str(), queries);
+    writePlot(*plot_path, reports, title);
+    io.out << (json_path ? "" : "\n") << "wrote " << *plot_path << '\n';
+  }
+  if (!passed) {
+    io.err << format("cfl bench: FAILED: CFL and FCL OBBRSS distances differ by more than 1e-9 of the diagonal (%g); "
+                     "see the rows marked MISMATCH\n",
+                     diagonal);
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace cfl::tool

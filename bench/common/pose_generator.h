@@ -1,0 +1,53 @@
+#pragma once
+/// @file
+/// The poses every benchmark uses, shared by `cfl bench`, `cfl paper` and the Google Benchmark suites so
+/// that their figures describe the same queries.
+
+#include "cfl/mesh.h"
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+namespace cfl::bench {
+
+/// The distance between mesh A at the identity and mesh B at pose X_WB. The benchmarks pass FCL's OBBRSS
+/// distance (the baseline), so poses do not depend on the code being measured.
+using DistanceFunction = std::function<double(const Eigen::Isometry3d& X_WB)>;
+
+/// Separation bands as fractions of A's bounding-box diagonal, the default of `cfl bench`:
+/// 0 (overlapping), 0.5%, 2%, 10%, 50%.
+std::vector<double> defaultBands();
+
+/// Poses of B for one band.
+struct BandPoses {
+  double band = 0;             ///< Fraction of A's bounding-box diagonal.
+  double target_distance = 0;  ///< band * diagonal.
+  std::vector<Eigen::Isometry3d> poses;  ///< X_WB, A being at the identity.
+  std::vector<double> distances;         ///< The distance function's value at each pose.
+};
+
+/// Relative tolerance on the achieved distance of a separated pose: |d - target| <= kBandTolerance * target.
+constexpr double kBandTolerance = 0.01;
+
+/// `count` poses of B, each a uniformly random rotation R and a uniformly random unit direction u; B's
+/// bounding-box center is placed at A's plus s * u, with the offset s found by bisection so that:
+/// - band > 0: distance(X_WB) is within kBandTolerance of band * diagonal(A). The distance is 1-Lipschitz
+///   in s, which lets every evaluation shrink the bracket from both sides.
+/// - band == 0: the meshes overlap (distance 0): half the offset at which they stop touching, else a
+///   quarter, else zero.
+/// A draw whose band cannot be reached (already too far apart at s = 0, or not overlapping) is replaced by a
+/// new draw. Deterministic for a given seed, band and pair of meshes: the random stream is seeded from
+/// `seed` and the band's value, so a band gets the same poses whatever other bands are asked for.
+/// Cost: about 10-20 distance evaluations per pose. Throws cfl::Error for band < 0, a non-finite band,
+/// empty bounds, or when 100 draws in a row fail.
+BandPoses generateBandPoses(const Aabb& bounds_a, const Aabb& bounds_b, double band, int count,
+                            std::uint64_t seed, const DistanceFunction& distance);
+
+/// The median and 90th percentile (nearest rank) of `values`; 0 for an empty vector.
+double median(std::vector<double> values);
+double percentile(std::vector<double> values, double fraction);
+
+}  // namespace cfl::bench

@@ -198,9 +198,36 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
         }
         upper = std::min(upper, farthest);
       }
+      const Eigen::Vector3d center = grid.voxelCenter(i, j, k);
+      // The triangle nearest to the center: a candidate for U, and the reference of the cone test below.
+      double center_squared = kInfinity;
+      int center_triangle = -1;
+      detail::nearestTriangle(geometry, center, center_squared, center_triangle);
+      {
+        const auto& c = geometry.corners[center_triangle];
+        double farthest = 0;
+        for (int n = 0; n < 8 && farthest < upper; ++n) {
+          farthest = std::max(farthest, pointTriangleSquaredDistance(corners[n], c[0], c[1], c[2]));
+        }
+        upper = std::min(upper, farthest);
+      }
       // Rounded up: a list may hold one triangle too many, never one too few.
       const double upper_bound = std::nextafter(std::sqrt(upper), kInfinity) * (1 + 1e-12);
-      const Eigen::Vector3d center = grid.voxelCenter(i, j, k);
+      const double center_distance = std::sqrt(center_squared);
+      // Cone test. For p in the voxel (within half_diagonal of the center), f(p) = dist(p, i) - dist(p, k)
+      // with k = center_triangle changes at most |u_i - u_k| per unit length, u being the unit direction
+      // from a triangle's closest point to p. While the voxel's ball stays clear of a triangle's bounding
+      // sphere, u lies in a cone around the direction from the sphere's center, so |u_i - u_k| is bounded by
+      // the chord of the angle between the two cones' axes plus both half-angles. If
+      // f(center) > half_diagonal * that bound, k is strictly closer than i everywhere in the voxel. Far from
+      // the mesh this drops the wide rim of triangles that the dmin/dmax test alone keeps.
+      const Eigen::Vector4d& sphere_k = geometry.spheres[center_triangle];
+      const Eigen::Vector3d axis_k = center - sphere_k.head<3>();
+      const double reach_k = half_diagonal + sphere_k[3];
+      const double axis_k_length = axis_k.norm();
+      const bool cone_usable = axis_k_length > reach_k;
+      const Eigen::Vector3d direction_k = cone_usable ? Eigen::Vector3d(axis_k / axis_k_length) : Eigen::Vector3d::Zero();
+      const double half_angle_k = cone_usable ? std::asin(reach_k / axis_k_length) : 0.0;
       trianglesNear(geometry, center, upper_bound + half_diagonal, candidates);
       std::sort(candidates.begin(), candidates.end());
       std::uint32_t count = 0;
@@ -212,6 +239,20 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
         if (d_center - half_diagonal > upper_bound) continue;
         const double d_min = detail::cubeTriangleLowerBound(center, half, c[0], c[1], c[2], closest);
         if (d_min > upper_bound) continue;
+        if (cone_usable && t != center_triangle) {
+          const Eigen::Vector4d& sphere_i = geometry.spheres[t];
+          const Eigen::Vector3d axis_i = center - sphere_i.head<3>();
+          const double reach_i = half_diagonal + sphere_i[3];
+          const double axis_i_length = axis_i.norm();
+          if (axis_i_length > reach_i) {
+            const double cosine = std::clamp(direction_k.dot(axis_i) / axis_i_length, -1.0, 1.0);
+            const double angle = std::acos(cosine) + std::asin(reach_i / axis_i_length) + half_angle_k;
+            const double gradient = angle >= M_PI ? 2.0 : 2.0 * std::sin(0.5 * angle);
+            // Margin: a few ulps of every term, relative to the voxel's reach.
+            const double margin = 1e-12 * (center_distance + d_center + half_diagonal);
+            if (d_center - center_distance > half_diagonal * gradient * (1 + 1e-9) + margin) continue;
+          }
+        }
         out.ids.push_back(t);
         ++count;
         lower = std::min(lower, d_min);

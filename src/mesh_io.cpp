@@ -2,10 +2,11 @@
 
 #include "cfl/error.h"
 
+#include <Eigen/Geometry>
 #include <assimp/Importer.hpp>
-#include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <array>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -42,12 +43,76 @@ struct PositionHash {
   }
 };
 
+// Appends the n - 2 triangles of the polygon `corners` (vertex ids in order) to `out`, consecutively and
+// with the polygon's orientation. Done here rather than by aiProcess_Triangulate, which reorders the corners
+// of some triangles and trips an assertion (abort) on some malformed files. Convex polygons, degenerate ones
+// and those of more than kMaxEarClipping corners are fanned from corner 0; other concave polygons are ear
+// clipped in the plane of their Newell normal, falling back to the fan when they are not simple. Either way
+// the count, and with it every later triangle id, does not depend on the geometry.
+void triangulatePolygon(const std::vector<Eigen::Vector3d>& vertices, const std::vector<int>& corners,
+                        std::vector<std::array<int, 3>>* out) {
+  constexpr std::size_t kMaxEarClipping = 256;  // ear clipping here is O(n^3)
+  const std::size_t n = corners.size();
+  const std::size_t first = out->size();
+  auto fan = [&] {
+    out->resize(first);
+    for (std::size_t c = 1; c + 1 < n; ++c) out->push_back({corners[0], corners[c], corners[c + 1]});
+  };
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    normal += vertices[std::size_t(corners[i])].cross(vertices[std::size_t(corners[(i + 1) % n])]);
+  }
+  if (!(normal.norm() > 0) || !normal.allFinite()) return fan();
+  // (u, v, normal) is right-handed, so the polygon winds counter-clockwise in (u, v).
+  const Eigen::Vector3d w = normal.normalized();
+  const Eigen::Vector3d u = w.unitOrthogonal();
+  const Eigen::Vector3d v = w.cross(u);
+  std::vector<Eigen::Vector2d> p(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d& q = vertices[std::size_t(corners[i])];
+    p[i] = Eigen::Vector2d(q.dot(u), q.dot(v));
+  }
+  auto turn = [&](std::size_t a, std::size_t b, std::size_t c) {
+    const Eigen::Vector2d ab = p[b] - p[a], ac = p[c] - p[a];
+    return ab.x() * ac.y() - ab.y() * ac.x();
+  };
+  bool convex = true;
+  for (std::size_t i = 0; i < n && convex; ++i) convex = turn(i, (i + 1) % n, (i + 2) % n) >= 0;
+  if (convex || n > kMaxEarClipping) return fan();
+
+  std::vector<std::size_t> left(n);
+  for (std::size_t i = 0; i < n; ++i) left[i] = i;
+  while (left.size() > 3) {
+    const std::size_t m = left.size();
+    bool clipped = false;
+    for (std::size_t k = 0; k < m && !clipped; ++k) {
+      const std::size_t a = left[(k + m - 1) % m], b = left[k], c = left[(k + 1) % m];
+      if (!(turn(a, b, c) > 0)) continue;  // reflex or flat corner
+      bool blocked = false;
+      for (std::size_t j : left) {
+        if (j == a || j == b || j == c) continue;
+        if (turn(a, b, j) >= 0 && turn(b, c, j) >= 0 && turn(c, a, j) >= 0) {
+          blocked = true;
+          break;
+        }
+      }
+      if (blocked) continue;
+      out->push_back({corners[a], corners[b], corners[c]});
+      left.erase(left.begin() + std::ptrdiff_t(k));
+      clipped = true;
+    }
+    if (!clipped) return fan();
+  }
+  out->push_back({corners[left[0]], corners[left[1]], corners[left[2]]});
+}
+
 struct SceneFlattener {
   const aiScene& scene;
   const std::string& path;
   TriangleMesh mesh;
   std::unordered_map<PositionKey, int, PositionHash> vertex_ids;
   std::size_t skipped_faces = 0;  // points and lines
+  std::vector<int> polygon_;      // scratch
 
   int vertexId(const Eigen::Vector3d& p, std::size_t mesh_index, unsigned vertex_index) {
     if (!p.allFinite()) {
@@ -60,19 +125,22 @@ struct SceneFlattener {
   }
 
   void addMesh(unsigned mesh_index, const aiMatrix4x4& X_WN) {
+    if (scene.mMeshes == nullptr || scene.mMeshes[mesh_index] == nullptr) {
+      fail(path, "mesh " + std::to_string(mesh_index) + " is missing from the scene");
+    }
     const aiMesh& m = *scene.mMeshes[mesh_index];
+    if ((m.mVertices == nullptr && m.mNumVertices > 0) || (m.mFaces == nullptr && m.mNumFaces > 0)) {
+      fail(path, "mesh " + std::to_string(mesh_index) + " has no vertex or face data");
+    }
     // The node transform is applied to each vertex as it is first used; a cache keeps that to once per
     // vertex of this instance.
     std::vector<int> ids(m.mNumVertices, -1);
     for (unsigned f = 0; f < m.mNumFaces; ++f) {
       const aiFace& face = m.mFaces[f];
-      if (face.mNumIndices < 3) {
+      if (face.mNumIndices < 3 || face.mIndices == nullptr) {
         ++skipped_faces;
         continue;
       }
-      // Triangulate has run, so larger faces only remain if assimp could not split them; fan them so no
-      // triangle is lost and ids stay consecutive.
-      std::array<int, 3> tri{};
       for (unsigned c = 0; c < face.mNumIndices; ++c) {
         const unsigned v = face.mIndices[c];
         if (v >= m.mNumVertices) {
@@ -84,10 +152,13 @@ struct SceneFlattener {
           ids[v] = vertexId(Eigen::Vector3d(p.x, p.y, p.z), mesh_index, v);
         }
       }
-      for (unsigned c = 1; c + 1 < face.mNumIndices; ++c) {
-        tri = {ids[face.mIndices[0]], ids[face.mIndices[c]], ids[face.mIndices[c + 1]]};
-        mesh.triangles.push_back(tri);
+      if (face.mNumIndices == 3) {
+        mesh.triangles.push_back({ids[face.mIndices[0]], ids[face.mIndices[1]], ids[face.mIndices[2]]});
+        continue;
       }
+      polygon_.clear();
+      for (unsigned c = 0; c < face.mNumIndices; ++c) polygon_.push_back(ids[face.mIndices[c]]);
+      triangulatePolygon(mesh.vertices, polygon_, &mesh.triangles);
     }
   }
 
@@ -119,10 +190,10 @@ TriangleMesh loadMesh(const std::string& path) {
   if (info.st_size == 0) fail(path, "the file is empty");
 
   Assimp::Importer importer;
-  // Only steps that never remove a triangle: no FindDegenerates, no SortByPType, no
-  // JoinIdenticalVertices (merging is done here, on positions alone, after the node transforms), no
-  // FindInvalidData. Triangulate splits polygons in place, keeping face order.
-  const aiScene* scene = importer.ReadFile(path, aiProcess_Triangulate);
+  // No post-processing at all: FindDegenerates, SortByPType and FindInvalidData would drop or move
+  // triangles the user's ids refer to, JoinIdenticalVertices is done here on positions alone (after the node
+  // transforms), and polygons are triangulated here (see triangulatePolygon).
+  const aiScene* scene = importer.ReadFile(path, 0);
   if (scene == nullptr) {
     std::string reason = importer.GetErrorString();
     if (reason.empty()) reason = "unknown assimp error";
@@ -130,7 +201,7 @@ TriangleMesh loadMesh(const std::string& path) {
   }
   if (scene->mRootNode == nullptr) fail(path, "the file holds no scene graph (no mesh)");
 
-  SceneFlattener flattener{*scene, path, {}, {}, 0};
+  SceneFlattener flattener{*scene, path, {}, {}, 0, {}};
   flattener.visit(*scene->mRootNode, aiMatrix4x4());
   if (flattener.mesh.triangles.empty()) {
     std::string reason = "the file holds no triangle (" + std::to_string(scene->mNumMeshes) + " meshes";

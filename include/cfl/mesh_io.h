@@ -14,18 +14,23 @@ namespace cfl {
 /// What you get:
 /// - Every mesh of the scene, each placed by the accumulated transforms of the nodes that reference it (a
 ///   mesh referenced by two nodes appears twice). Point and line primitives are skipped.
-/// - Polygons with more than three corners are triangulated by assimp into n - 2 triangles.
+/// - Polygons with n > 3 corners become n - 2 consecutive triangles with the polygon's orientation: a fan
+///   from the first corner when convex, ear clipping in the polygon's plane when concave (a fan again when
+///   the polygon is not simple, or has more than 256 corners).
 /// - Triangle ids: triangles are numbered in scene order: nodes depth-first from the root, each node's meshes
-///   in order, each mesh's faces in order, an n-gon's triangles consecutively. For a file holding one object
-///   with one material (the usual OBJ, STL, PLY or OFF), triangle i is therefore the i-th triangle of the file
-///   after triangulation. Degenerate triangles (zero area, repeated corners) are kept as they are, so these
-///   ids stay valid; they are harmless to every query (a degenerate triangle is a segment or a point).
+///   in order, each mesh's faces in order. For a file holding one object with one material (the usual OBJ,
+///   STL, PLY or OFF), triangle i is therefore the i-th triangle of the file after triangulation, with its
+///   corners in the file's order. Degenerate triangles (zero area, repeated corners) are kept as they are,
+///   so these ids stay valid; they are harmless to every query (a degenerate triangle is a segment or a
+///   point). No assimp post-processing step runs, since several of them drop or reorder triangles.
 /// - Vertices with bit-identical positions are merged (STL stores none shared); vertex order is first use.
-/// - Coordinates pass through assimp as 32-bit floats (assimp's own precision), then widen to double.
+/// - Coordinates pass through assimp as 32-bit floats (assimp's own precision; its text parser may also be
+///   one float ulp off the correctly rounded value), then widen to double.
 ///
 /// Throws cfl::Error whose message starts with the path and gives the reason: the file is missing or
 /// unreadable, empty, not a format assimp can parse (with assimp's own message), holds no triangle, or has
-/// a non-finite coordinate. The result always passes validateMesh.
+/// a non-finite coordinate, or a face index out of range (except in OFF files, whose assimp reader clamps
+/// such an index to the last vertex and only logs it). The result always passes validateMesh.
 /// Thread safety: each call uses its own importer, so concurrent calls are safe. Time: linear in file size.
 TriangleMesh loadMesh(const std::string& path);
 

@@ -1,0 +1,284 @@
+// The `cfl` binary run as a user runs it: exit statuses (0 ok, 1 failure, 2 usage), error messages naming
+// the culprit, and `cfl distance --method both` answers that agree with each other, with brute force and
+// with their own closest points.
+
+#include "cfl/cfl_query.h"
+#include "pose_file.h"
+#include "support/test_meshes.h"
+
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#ifndef CFL_TOOL_PATH
+#error "CFL_TOOL_PATH must name the cfl binary"
+#endif
+
+namespace cfl {
+namespace {
+
+struct ToolRun {
+  int status = -1;
+  std::string out;
+  std::string err;
+};
+
+std::string readFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+void writeFile(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  out << text;
+}
+
+std::string quote(const std::string& word) {
+  std::string q = "'";
+  for (char c : word) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+std::string objText(const TriangleMesh& m) {
+  std::string s;
+  char line[128];
+  for (const auto& v : m.vertices) {
+    std::snprintf(line, sizeof line, "v %.9g %.9g %.9g\n", v.x(), v.y(), v.z());
+    s += line;
+  }
+  for (const auto& t : m.triangles) s += "f " + std::to_string(t[0] + 1) + " " + std::to_string(t[1] + 1) + " " + std::to_string(t[2] + 1) + "\n";
+  return s;
+}
+
+TriangleMesh roundToFloat(TriangleMesh mesh) {
+  for (auto& v : mesh.vertices) v = v.cast<float>().cast<double>();
+  return mesh;
+}
+
+class ToolCliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string pattern = ::testing::TempDir() + "cfl_tool_cli_XXXXXX";
+    ASSERT_NE(::mkdtemp(pattern.data()), nullptr);
+    dir_ = pattern;
+  }
+  void TearDown() override { std::system(("rm -rf " + quote(dir_)).c_str()); }
+  std::string path(const std::string& name) const { return dir_ + "/" + name; }
+
+  // Runs the tool with `args` (shell words, quoted here), standard input from `input`.
+  ToolRun run(const std::vector<std::string>& args, const std::string& input = "", const std::string& env = "") {
+    writeFile(path("stdin.txt"), input);
+    std::string command = env.empty() ? "" : "/usr/bin/env " + env + " ";
+    command += quote(CFL_TOOL_PATH);
+    for (const auto& a : args) command += " " + quote(a);
+    command += " < " + quote(path("stdin.txt")) + " > " + quote(path("stdout.txt")) + " 2> " + quote(path("stderr.txt"));
+    const int raw = std::system(command.c_str());
+    ToolRun r;
+    r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+    r.out = readFile(path("stdout.txt"));
+    r.err = readFile(path("stderr.txt"));
+    return r;
+  }
+
+  std::string writeMesh(const std::string& name, const TriangleMesh& mesh) {
+    writeFile(path(name), objText(mesh));
+    return path(name);
+  }
+
+  std::string dir_;
+};
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+TEST_F(ToolCliTest, NoCommandIsAUsageError) {
+  const ToolRun r = run({});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_TRUE(contains(r.err, "usage: cfl")) << r.err;
+}
+
+TEST_F(ToolCliTest, UnknownCommandIsAUsageErrorNamingIt) {
+  const ToolRun r = run({"frobnicate"});
+  EXPECT_EQ(r.status, 2);
+  EXPECT_TRUE(contains(r.err, "frobnicate")) << r.err;
+}
+
+TEST_F(ToolCliTest, TopLevelHelpSucceedsAndListsEveryCommand) {
+  const ToolRun r = run({"--help"});
+  EXPECT_EQ(r.status, 0);
+  for (const char* name : {"build", "info", "distance", "bench", "paper"}) EXPECT_TRUE(contains(r.out, name)) << name;
+  EXPECT_TRUE(contains(r.out, "Exit status")) << r.out;
+}
+
+TEST_F(ToolCliTest, EverySubcommandHasHelp) {
+  for (const std::string name : {"build", "info", "distance", "bench", "paper"}) {
+    for (const char* flag : {"--help", "-h"}) {
+      const ToolRun r = run({name, flag});
+      EXPECT_EQ(r.status, 0) << name << " " << flag;
+      EXPECT_EQ(r.out.rfind("usage: cfl " + name, 0), 0u) << r.out;
+    }
+  }
+}
+
+TEST_F(ToolCliTest, CommandLineMistakesAreStatus2AndNameTheProblem) {
+  const std::string mesh = writeMesh("box.obj", test::makeBox({0, 0, 0}, {1, 1, 1}));
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"bench", "--bogus"}, "--bogus"},
+      {{"bench", "--queries", "abc"}, "--queries"},
+      {{"bench", "--queries"}, "--queries"},
+      {{"bench", "--bands", "0,,1"}, "item 2"},
+      {{"bench", "a", "b", "c"}, "at most two"},
+      {{"build"}, "expected one mesh"},
+      {{"build", mesh, "--resolution", "-4"}, "--resolution"},
+      {{"build", mesh, "--padding", "0.5"}, "--padding"},
+      {{"info", mesh, mesh}, "expected one"},
+      {{"distance", mesh}, "expected meshes A and B"},
+      {{"distance", mesh, mesh, "--method", "pqp"}, "pqp"},
+      {{"paper", "--band", "x"}, "--band"},
+  };
+  for (const auto& [args, expected] : cases) {
+    const ToolRun r = run(args);
+    std::string line;
+    for (const auto& a : args) line += a + " ";
+    EXPECT_EQ(r.status, 2) << line << "\n" << r.err;
+    EXPECT_TRUE(contains(r.err, expected)) << line << "\n" << r.err;
+  }
+}
+
+TEST_F(ToolCliTest, UnreadableMeshesAreStatus1NamingTheFile) {
+  writeFile(path("empty.obj"), "");
+  writeFile(path("lines.obj"), "v 0 0 0\nv 1 0 0\nl 1 2\n");
+  for (const std::string name : {"missing.obj", "empty.obj", "lines.obj"}) {
+    const ToolRun info = run({"info", path(name)});
+    EXPECT_EQ(info.status, 1) << name << "\n" << info.err;
+    EXPECT_TRUE(contains(info.err, path(name))) << info.err;
+    const ToolRun bench = run({"bench", path(name), "--queries", "1"});
+    EXPECT_EQ(bench.status, 1) << name << "\n" << bench.err;
+    EXPECT_TRUE(contains(bench.err, path(name))) << bench.err;
+  }
+}
+
+TEST_F(ToolCliTest, MalformedPoseFileIsStatus1NamingItsLine) {
+  const std::string mesh = writeMesh("box.obj", test::makeBox({0, 0, 0}, {1, 1, 1}));
+  writeFile(path("poses.txt"), "# ok\n1 0 0 3 0 1 0 0 0 0 1 0\n1 0 0 3 0 1 0 0 0 0 1\n");
+  const ToolRun r = run({"distance", mesh, mesh, "--poses", path("poses.txt")});
+  EXPECT_EQ(r.status, 1);
+  EXPECT_TRUE(contains(r.err, path("poses.txt") + ":3:")) << r.err;
+  const ToolRun from_stdin = run({"distance", mesh, mesh}, "1 0 0 3 0 1 0 0 0 0 2 0\n");
+  EXPECT_EQ(from_stdin.status, 1);
+  EXPECT_TRUE(contains(from_stdin.err, "<stdin>:1:")) << from_stdin.err;
+  const ToolRun missing = run({"distance", mesh, mesh, "--poses", path("nope.txt")});
+  EXPECT_EQ(missing.status, 1);
+  EXPECT_TRUE(contains(missing.err, path("nope.txt"))) << missing.err;
+}
+
+// Closest point p (world) lies on triangle t of `mesh` placed at X_WM.
+double distanceToTriangle(const TriangleMesh& mesh, int t, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p) {
+  const auto& tri = mesh.triangles[std::size_t(t)];
+  return std::sqrt(test::referencePointTriangleSquaredDistance(
+      X_WM.inverse() * p, mesh.vertices[std::size_t(tri[0])], mesh.vertices[std::size_t(tri[1])],
+      mesh.vertices[std::size_t(tri[2])]));
+}
+
+TEST_F(ToolCliTest, DistanceBothMethodsAgreeWithEachOtherAndWithBruteForce) {
+  // Float-representable meshes, so what the tool reads through assimp is exactly these.
+  const TriangleMesh a = roundToFloat(test::makeTorusKnot(2, 3, 0.5, 0.15, 48, 5));
+  const TriangleMesh b = roundToFloat(test::makeTorus(0.6, 0.2, 16, 8));
+  const std::string path_a = writeMesh("knot.obj", a), path_b = writeMesh("torus.obj", b);
+  const MeshModel model_a = makeMeshModel(a), model_b = makeMeshModel(b);
+  const double diagonal = std::max(model_a.bounds.diagonal(), model_b.bounds.diagonal());
+
+  // Poses from overlapping to well apart, so that every range is exercised.
+  test::Rng rng(2024);
+  std::vector<Eigen::Isometry3d> poses;
+  std::string pose_text = "# B's poses\n";
+  for (int i = 0; i < 12; ++i) {
+    poses.push_back(test::randomPose(rng, 0.25 * diagonal * (1 + i / 3)));
+    pose_text += tool::formatPose(poses.back()) + "\n";
+  }
+  writeFile(path("poses.txt"), pose_text);
+
+  const ToolRun r = run({"distance", path_a, path_b, "--poses", path("poses.txt"), "--method", "both", "--resolution", "12"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::istringstream csv(r.out);
+  const std::vector<tool::DistanceRow> rows = tool::readDistanceCsv(csv, "stdout");
+  ASSERT_EQ(rows.size(), 2 * poses.size());
+  int overlapping = 0;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const tool::DistanceRow& c = rows[2 * i];
+    const tool::DistanceRow& f = rows[2 * i + 1];
+    ASSERT_EQ(c.method, "cfl");
+    ASSERT_EQ(f.method, "obbrss");
+    ASSERT_EQ(c.pose, long(i));
+    ASSERT_EQ(f.pose, long(i));
+    const DistanceResult brute = bruteForceDistance(model_a, Eigen::Isometry3d::Identity(), model_b, poses[i]);
+    EXPECT_NEAR(c.distance, f.distance, 1e-9 * diagonal) << "pose " << i;
+    EXPECT_NEAR(c.distance, brute.distance, 1e-9 * diagonal) << "pose " << i;
+    if (brute.distance == 0) ++overlapping;
+    // The reported points realize the reported distance and lie on the reported triangles.
+    for (const tool::DistanceRow* row : {&c, &f}) {
+      if (row->distance > 0) EXPECT_NEAR((row->point_a - row->point_b).norm(), row->distance, 1e-9 * diagonal) << "pose " << i;
+      EXPECT_LE(distanceToTriangle(a, row->triangle_a, Eigen::Isometry3d::Identity(), row->point_a), 1e-9 * diagonal);
+      EXPECT_LE(distanceToTriangle(b, row->triangle_b, poses[i], row->point_b), 1e-9 * diagonal);
+    }
+  }
+  EXPECT_GT(overlapping, 0) << "no overlapping pose: widen the test's pose range";
+  EXPECT_LT(overlapping, int(poses.size())) << "no separated pose: widen the test's pose range";
+
+  // The same poses through standard input, CFL only: same distances, exact header.
+  const ToolRun piped = run({"distance", path_a, path_b, "--resolution", "12"}, pose_text);
+  ASSERT_EQ(piped.status, 0) << piped.err;
+  EXPECT_EQ(piped.out.substr(0, piped.out.find('\n')), tool::kDistanceCsvHeader);
+  std::istringstream piped_csv(piped.out);
+  const auto piped_rows = tool::readDistanceCsv(piped_csv, "stdout");
+  ASSERT_EQ(piped_rows.size(), poses.size());
+  for (std::size_t i = 0; i < poses.size(); ++i) EXPECT_EQ(piped_rows[i].distance, rows[2 * i].distance) << i;
+}
+
+TEST_F(ToolCliTest, BuildSavesAModelThatInfoReadsBack) {
+  const std::string mesh = writeMesh("knot.obj", roundToFloat(test::makeTorusKnot(2, 3, 1.0, 0.3, 32, 5)));
+  const ToolRun build = run({"build", mesh, "-o", path("knot.cfl"), "--resolution", "10"});
+  ASSERT_EQ(build.status, 0) << build.err;
+  const ToolRun info = run({"info", path("knot.cfl")});
+  ASSERT_EQ(info.status, 0) << info.err;
+  // Standard error is not a terminal here: plain progress lines, no carriage returns.
+  EXPECT_TRUE(contains(build.err, "100%") || contains(build.err, "done in")) << build.err;
+  EXPECT_FALSE(contains(build.err, "\r")) << build.err;
+  for (const char* field : {"voxels:", "average CFL length:", "longest CFL:", "triangles:"}) {
+    const auto line = [&](const std::string& text) {
+      const auto at = text.find(field);
+      return at == std::string::npos ? std::string("missing") : text.substr(at, text.find('\n', at) - at);
+    };
+    EXPECT_EQ(line(build.out), line(info.out)) << field;
+    EXPECT_NE(line(info.out), "missing") << field;
+  }
+}
+
+TEST_F(ToolCliTest, SmallBenchRunPassesItsExactnessCheckAndWritesJson) {
+  const std::string mesh = writeMesh("torus.obj", roundToFloat(test::makeTorus(1.0, 0.35, 16, 8)));
+  const ToolRun r = run({"bench", mesh, "--queries", "4", "--bands", "0,0.05", "--repeats", "1", "--resolution", "10",
+                     "--json", path("out.json")});
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string json = readFile(path("out.json"));
+  EXPECT_TRUE(contains(json, "\"passed\": true")) << json;
+  EXPECT_TRUE(contains(json, "\"band\": 0.05")) << json;
+  EXPECT_TRUE(contains(r.out, "OBBRSS/CFL")) << r.out;
+}
+
+TEST_F(ToolCliTest, PlotWithoutGnuplotFailsBeforeWorkingAndSaysWhy) {
+  const std::string mesh = writeMesh("box.obj", test::makeBox({0, 0, 0}, {1, 1, 1}));
+  const ToolRun r = run({"bench", mesh, "--queries", "1", "--plot", path("out.png")}, "", "PATH=" + dir_);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_TRUE(contains(r.err, "gnuplot")) << r.err;
+}
+
+}  // namespace
+}  // namespace cfl

@@ -243,18 +243,21 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
       fail("grid dims[" + std::to_string(axis) + "] is " + std::to_string(grid.dims[axis]) + ", must be >= 1");
     }
   }
-  // Checked against voxel_list's size below; the product cannot overflow because each dim is an int.
+  // The dims must multiply to voxel_list's size, checked by division so that absurd dims (three ints
+  // multiply to 2^93) never overflow; only then are VoxelGrid's own count functions safe to call.
+  const std::uint64_t listed = model.voxel_list.size();
+  const std::uint64_t d0 = std::uint64_t(grid.dims[0]), d1 = std::uint64_t(grid.dims[1]), d2 = std::uint64_t(grid.dims[2]);
+  if (listed > std::numeric_limits<std::uint32_t>::max() || d0 > listed || d1 > listed / d0 ||
+      d2 > listed / (d0 * d1) || d0 * d1 * d2 != listed) {
+    fail("grid of " + std::to_string(grid.dims[0]) + " x " + std::to_string(grid.dims[1]) + " x " +
+         std::to_string(grid.dims[2]) + " voxels, but voxel_list has " + std::to_string(listed) + " entries");
+  }
   const std::int64_t voxel_count = grid.voxelCount();
   if (!grid.bounds().max.allFinite()) fail("grid far corner is not finite (voxel size times dims overflows)");
   if (!std::isfinite(model.padding) || model.padding < 1.0) {
     fail("padding is " + std::to_string(model.padding) + ", must be a finite factor >= 1");
   }
 
-  if (static_cast<std::int64_t>(model.voxel_list.size()) != voxel_count) {
-    fail("grid of " + std::to_string(grid.dims[0]) + " x " + std::to_string(grid.dims[1]) + " x " +
-         std::to_string(grid.dims[2]) + " = " + std::to_string(voxel_count) + " voxels, but voxel_list has " +
-         std::to_string(model.voxel_list.size()) + " entries");
-  }
   if (static_cast<std::int64_t>(model.voxel_lower_bound.size()) != voxel_count) {
     fail("grid has " + std::to_string(voxel_count) + " voxels, but voxel_lower_bound has " +
          std::to_string(model.voxel_lower_bound.size()) + " entries");

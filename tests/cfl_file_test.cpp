@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <string>
@@ -456,6 +457,40 @@ TEST_F(CflFileStructure, GridInconsistentWithArraysIsRefused) {
   expectRefused(edited([&](Bytes& b) { putU32(b, dims + 4, 0); }), "dims[1] is 0");
   expectRefused(edited([&](Bytes& b) { putU32(b, dims + 8, 0x80000000u); }), "dims[2] is -2147483648");
   expectRefused(edited([&](Bytes& b) { putU32(b, dims + 12 + 8, 2); }), "unknown flags");
+}
+
+TEST_F(CflFileStructure, HugeGridDimsAreRefusedWithoutOverflow) {
+  // Found by cfl_file_fuzzer: dims whose product overflows 64 bits must not be multiplied.
+  const std::size_t dims = sectionBody(good_, "GRID") + 32;
+  expectRefused(edited([&](Bytes& b) {
+                  for (int axis = 0; axis < 3; ++axis) putU32(b, dims + 4 * axis, 0x7FFFFFFFu);
+                }),
+                "grid of 2147483647 x 2147483647 x 2147483647 voxels");
+  expectRefused(edited([&](Bytes& b) { putU32(b, dims + 8, 0x40000000u); }), "voxel_list has");
+}
+
+// Every input that once crashed a fuzzer, kept in fuzz/regressions/, must now be refused or load cleanly,
+// both as found and resealed (the fuzzer tries both).
+TEST(CflFile, FuzzerRegressionInputsAreHandled) {
+  const std::filesystem::path directory = std::filesystem::path(CFL_DATA_DIR) / ".." / "fuzz" / "regressions" / "cfl_file_fuzzer";
+  ASSERT_TRUE(std::filesystem::is_directory(directory)) << directory;
+  int files = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(directory)) {
+    std::ifstream file(entry.path(), std::ios::binary);
+    Bytes bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+    for (bool reseal : {false, true}) {
+      if (reseal) detail::resealCflBuffer(bytes.data(), bytes.size());
+      try {
+        const CflModel model = deserializeCflModel(bytes.data(), bytes.size(), entry.path().string());
+        const Bytes saved = serializeCflModel(model);
+        EXPECT_EQ(saved, serializeCflModel(deserializeCflModel(saved.data(), saved.size(), "resaved")));
+      } catch (const Error& error) {
+        EXPECT_EQ(std::string(error.what()).rfind(entry.path().string(), 0), 0u) << error.what();
+      }
+    }
+    ++files;
+  }
+  EXPECT_GT(files, 0);
 }
 
 TEST_F(CflFileStructure, NonFiniteValuesAreRefused) {

@@ -1,0 +1,78 @@
+// Writes the seed corpus of cfl_file_fuzzer: a few small valid CFL files and broken variants of them
+// (truncated, wrong magic, wrong version, flipped byte). Run from the source tree's fuzz/ directory:
+//   make_seed_corpus corpus/cfl_file_fuzzer
+// The committed corpus was made this way; rerun it after a format change.
+
+#include "cfl/cfl_file.h"
+#include "cfl/cfl_model.h"
+
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+namespace {
+
+void write(const std::string& path, const std::vector<unsigned char>& bytes) {
+  std::FILE* file = std::fopen(path.c_str(), "wb");
+  if (!file || std::fwrite(bytes.data(), 1, bytes.size(), file) != bytes.size()) {
+    std::perror(path.c_str());
+    std::exit(1);
+  }
+  std::fclose(file);
+}
+
+cfl::TriangleMesh tetrahedron() {
+  cfl::TriangleMesh mesh;
+  mesh.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  mesh.triangles = {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}};
+  return mesh;
+}
+
+cfl::TriangleMesh degenerate() {
+  // A segment-like sliver, a point triangle and a duplicate: valid geometry the builder must handle.
+  cfl::TriangleMesh mesh;
+  mesh.vertices = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {0, 1, 0}};
+  mesh.triangles = {{0, 1, 2}, {3, 3, 3}, {0, 1, 3}, {1, 0, 3}};
+  return mesh;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: %s OUTPUT_DIRECTORY\n", argv[0]);
+    return 2;
+  }
+  const std::string out = argv[1];
+  cfl::BuildOptions options;
+  options.threads = 1;
+  options.resolution = 2;
+  const auto tiny = cfl::serializeCflModel(cfl::buildCflModel(tetrahedron(), options));
+  write(out + "/valid_tetrahedron_r2.cfl", tiny);
+  options.resolution = 4;
+  options.topology_culling = true;
+  write(out + "/valid_tetrahedron_r4_culling.cfl", cfl::serializeCflModel(cfl::buildCflModel(tetrahedron(), options)));
+  options.resolution = 3;
+  options.topology_culling = false;
+  options.padding = 1.0;
+  write(out + "/valid_degenerate_r3.cfl", cfl::serializeCflModel(cfl::buildCflModel(degenerate(), options)));
+
+  std::vector<unsigned char> broken(tiny.begin(), tiny.begin() + tiny.size() / 2);
+  write(out + "/broken_truncated.cfl", broken);
+  broken = tiny;
+  broken[0] = 'X';
+  write(out + "/broken_magic.cfl", broken);
+  broken = tiny;
+  broken[12] = 99;
+  cfl::detail::resealCflBuffer(broken.data(), broken.size());
+  write(out + "/broken_version.cfl", broken);
+  broken = tiny;
+  broken[broken.size() - 20] ^= 0x40;
+  write(out + "/broken_flipped_byte.cfl", broken);
+  broken = tiny;
+  broken[broken.size() - 20] ^= 0x40;
+  cfl::detail::resealCflBuffer(broken.data(), broken.size());
+  write(out + "/broken_resealed_statistics.cfl", broken);
+  return 0;
+}

@@ -11,7 +11,7 @@
 //   eps / sin(angle). For angles below 1e-2 rad the normal is recomputed in twice the working precision
 //   (error-free transformations), which keeps it accurate down to relative heights of ~1e-14; below that the
 //   triangle is treated as the segment it nearly is, which errs by at most its height. The remaining
-//   direction error of the normal is tracked (Tri::nerr) and widens the plane-side and touching tolerances.
+//   direction error of the normal is tracked (Tri::nerr2) and widens the plane-side and touching tolerances.
 // - Segment-segment uses the closed form (Ericson, Real-Time Collision Detection, 5.1.9) when the segments are
 //   far from parallel, and the cross-product form of the same line parameter, whose error is second order in
 //   the direction error, when they are nearly parallel.
@@ -46,6 +46,14 @@ constexpr double kParallelSin2 = 1e-24;
 // rounding of the feature distances (a few eps of the size), far below any tolerance a user can ask for.
 constexpr double kTouchRel = 64.0 * kEps;
 
+#if defined(__GNUC__)
+#define CFL_HOT_INLINE inline __attribute__((always_inline))
+#define CFL_LAMBDA_INLINE __attribute__((always_inline))
+#else
+#define CFL_HOT_INLINE inline
+#define CFL_LAMBDA_INLINE
+#endif
+
 inline double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
 
 // A triangle with the derived quantities every kernel needs. e[i] = v[i+1] - v[i]; m[i] = n x e[i] points into
@@ -56,8 +64,9 @@ struct Tri {
   double e2[3];
   Vec n;
   double nn;
-  double nerr;  // bound on the direction error of n, in radians
+  double nerr2;  // bound on the squared direction error of n, in radians^2
   bool degenerate;
+  bool has_m;  // m is set
   Vec m[3];
 };
 
@@ -112,6 +121,7 @@ Vec accurateNormal(const Vec* v) {
 // Fills everything but m.
 inline void initTri(const Vec* v, Tri& t) {
   t.v = v;
+  t.has_m = false;
   t.e[0] = v[1] - v[0];
   t.e[1] = v[2] - v[1];
   t.e[2] = v[0] - v[2];
@@ -123,13 +133,12 @@ inline void initTri(const Vec* v, Tri& t) {
   // Strict, so that a point triangle (0 > 0) and NaN input take the careful path and end up degenerate.
   const double scale = t.e2[0] * t.e2[2];
   if (t.nn > kFastSin2 * scale) {
-    // Rounding of the edges and of the cross product, relative to |n| = |e0| |e2| sin.
-    t.nerr = 4.0 * kEps * (1.0 + std::sqrt(scale / t.nn));
+    t.nerr2 = -1.0;  // computed by normalError2() when needed
     t.degenerate = false;
   } else {
     t.n = accurateNormal(v);
     t.nn = t.n.squaredNorm();
-    t.nerr = 4.0 * kEps;
+    t.nerr2 = 16.0 * kEps * kEps;
     const double m2 = std::max({t.e2[0], t.e2[1], t.e2[2]});
     // sin^2 of the largest angle = nn / (product of its two edges), which are the two shortest edges.
     const double short_product = t.e2[0] * t.e2[1] * t.e2[2] / m2;
@@ -137,15 +146,22 @@ inline void initTri(const Vec* v, Tri& t) {
   }
 }
 
+// Bound on the squared direction error of t.n (radians^2): for the plain cross product, the rounding of the
+// edges and of the products relative to |n| = |e0| |e2| sin, i.e. (4 eps (1 + 1/sin))^2 <= 32 eps^2 (1 + 1/sin^2).
+inline double normalError2(const Tri& t) {
+  return t.nerr2 >= 0.0 ? t.nerr2 : 32.0 * kEps * kEps * (1.0 + t.e2[0] * t.e2[2] / t.nn);
+}
+
 inline void initEdgeNormals(Tri& t) {
-  if (t.degenerate) return;
+  if (t.degenerate || t.has_m) return;
+  t.has_m = true;
   t.m[0] = t.n.cross(t.e[0]);
   t.m[1] = t.n.cross(t.e[1]);
   t.m[2] = t.n.cross(t.e[2]);
 }
 
 // Squared distance from p to segment a + s e, s in [0, 1] (e2 = e.e, may be 0); s and the offset p - closest.
-inline double pointSegment(const Vec& p, const Vec& a, const Vec& e, double e2, double* s_out) {
+CFL_HOT_INLINE double pointSegment(const Vec& p, const Vec& a, const Vec& e, double e2, double* s_out) {
   const Vec d = p - a;
   double s = e.dot(d);
   if (s <= 0.0) {
@@ -161,7 +177,7 @@ inline double pointSegment(const Vec& p, const Vec& a, const Vec& e, double e2, 
 
 // Point-triangle on a prepared triangle (initEdgeNormals done). `in_face` tells whether the closest point is
 // interior to the face region (the projection of p lies inside the triangle).
-inline double pointTri(const Tri& t, const Vec& p, Vec* closest, bool* in_face) {
+CFL_HOT_INLINE double pointTri(const Tri& t, const Vec& p, Vec* closest, bool* in_face) {
   *in_face = false;
   int mask = 7;
   if (!t.degenerate) {
@@ -198,7 +214,7 @@ inline double pointTri(const Tri& t, const Vec& p, Vec* closest, bool* in_face) 
 }
 
 // Squared distance between segments x0 + s dx and y0 + t dy, s, t in [0, 1]; dx2 = dx.dx, dy2 = dy.dy.
-inline double segSeg(const Vec& x0, const Vec& dx, double dx2, const Vec& y0, const Vec& dy, double dy2,
+CFL_HOT_INLINE double segSeg(const Vec& x0, const Vec& dx, double dx2, const Vec& y0, const Vec& dy, double dy2,
                      double* s_out, double* t_out) {
   const Vec r = x0 - y0;
   const double f = dy.dot(r);
@@ -269,10 +285,11 @@ struct Pair {
   bool sep_p;     // P lies strictly on one side of Q's plane, by more than the touching tolerance
   bool sep_q;
   double touch2;  // squared touching tolerance
+  double size2;   // squared longest edge of the two triangles
 };
 
 // d[i] = t.n . (x[i] - t.v[0]); returns whether all three x lie strictly on one side of t's plane, each by more
-// than the touching tolerance plus what the normal's direction error can move it (nerr |x[i] - t.v[0]|).
+// than the touching tolerance plus what the normal's direction error can move it (|x[i] - t.v[0]| times the direction error).
 inline bool planeDistances(const Vec* x, const Tri& t, double touch2, double* d) {
   Vec r[3];
   for (int i = 0; i < 3; ++i) {
@@ -281,7 +298,7 @@ inline bool planeDistances(const Vec* x, const Tri& t, double touch2, double* d)
   }
   const bool one_side = (d[0] > 0.0 && d[1] > 0.0 && d[2] > 0.0) || (d[0] < 0.0 && d[1] < 0.0 && d[2] < 0.0);
   if (!one_side) return false;
-  const double e2 = t.nerr * t.nerr;
+  const double e2 = t.nerr2;
   for (int i = 0; i < 3; ++i) {
     // (a + b)^2 <= 2 a^2 + 2 b^2
     if (!(d[i] * d[i] > 2.0 * (touch2 + e2 * r[i].squaredNorm()) * t.nn)) return false;
@@ -295,8 +312,11 @@ inline void initPair(const Vec p[3], const Vec q[3], Pair& pr) {
   const double l2 = std::max({pr.P.e2[0], pr.P.e2[1], pr.P.e2[2], pr.Q.e2[0], pr.Q.e2[1], pr.Q.e2[2]});
   // The feature distances of touching triangles err by a few eps of the size plus the normals' direction
   // error times the size.
-  const double touch = kTouchRel + 4.0 * std::max(pr.P.nerr, pr.Q.nerr);
-  pr.touch2 = touch * touch * l2;
+  pr.P.nerr2 = normalError2(pr.P);
+  pr.Q.nerr2 = normalError2(pr.Q);
+  // touch = kTouchRel + 4 nerr, squared with (a + b)^2 <= 2 a^2 + 2 b^2.
+  pr.touch2 = 2.0 * (kTouchRel * kTouchRel + 16.0 * std::max(pr.P.nerr2, pr.Q.nerr2)) * l2;
+  pr.size2 = l2;
   pr.sep_p = !pr.Q.degenerate && planeDistances(p, pr.Q, pr.touch2, pr.dp);
   pr.sep_q = !pr.P.degenerate && planeDistances(q, pr.P, pr.touch2, pr.dq);
 }
@@ -308,9 +328,6 @@ double featureDistance(Pair& pr, double stop2, Vec* cp, Vec* cq) {
   Tri& Q = pr.Q;
   const Vec* p = P.v;
   const Vec* q = Q.v;
-  initEdgeNormals(P);
-  initEdgeNormals(Q);
-
   // Lower bounds from the planes: a vertex (edge) of P on one side of Q's plane is at least its plane distance
   // from anything in Q.
   double lb_pv[3] = {0, 0, 0}, lb_qv[3] = {0, 0, 0}, lb_pe[3] = {0, 0, 0}, lb_qe[3] = {0, 0, 0};
@@ -335,33 +352,49 @@ double featureDistance(Pair& pr, double stop2, Vec* cp, Vec* cq) {
   Vec bp = p[0], bq = q[0];
   bool done_pv[3] = {false, false, false}, done_qv[3] = {false, false, false};
 
-  // The vertex of P nearest Q's plane first: if P is on one side of that plane and the vertex projects into Q,
-  // the plane distance is both a lower bound and attained, so it is the answer.
+  // Certificate of optimality for the current pair (bp, bq): with v = bq - bp, all of P behind the plane through
+  // bp normal to v and all of Q in front of the parallel plane through bq means nothing is closer than |v|.
+  // Checking the six vertices suffices (convexity). The slack admits rounding; it can accept a pair that is
+  // at most 2 kTouchRel * size too far.
+  const double slack2 = pr.size2 * (kTouchRel * kTouchRel);
+  auto optimal = [&]() CFL_LAMBDA_INLINE {
+    const Vec v = bq - bp;
+    const double limit = slack2 * v.squaredNorm();
+    for (int i = 0; i < 3; ++i) {
+      const double a = v.dot(p[i] - bp);
+      if (a > 0.0 && a * a > limit) return false;
+      const double b = v.dot(q[i] - bq);
+      if (b < 0.0 && b * b > limit) return false;
+    }
+    return true;
+  };
+
+  // The vertex of each triangle nearest the other's plane first: if a triangle is on one side of the other's
+  // plane and that vertex projects into the other, the plane distance is both a lower bound and attained.
   {
     const int k = lb_pv[0] <= lb_pv[1] ? (lb_pv[0] <= lb_pv[2] ? 0 : 2) : (lb_pv[1] <= lb_pv[2] ? 1 : 2);
     Vec c;
     bool face;
-    const double d2 = pointTri(Q, p[k], &c, &face);
+    const double d2 = (initEdgeNormals(Q), pointTri(Q, p[k], &c, &face));
     done_pv[k] = true;
-    if (d2 < best) {
-      best = d2;
-      bp = p[k];
-      bq = c;
-    }
+    best = d2;
+    bp = p[k];
+    bq = c;
     if ((face && pr.sep_p) || best <= stop2) goto finish;
   }
   {
     const int k = lb_qv[0] <= lb_qv[1] ? (lb_qv[0] <= lb_qv[2] ? 0 : 2) : (lb_qv[1] <= lb_qv[2] ? 1 : 2);
     Vec c;
     bool face;
-    const double d2 = pointTri(P, q[k], &c, &face);
+    const double d2 = (initEdgeNormals(P), pointTri(P, q[k], &c, &face));
     done_qv[k] = true;
     if (d2 < best) {
       best = d2;
       bp = c;
       bq = q[k];
+      if ((face && pr.sep_q) || best <= stop2) goto finish;
     }
-    if ((face && pr.sep_q && d2 <= best) || best <= stop2) goto finish;
+    if (optimal()) goto finish;
   }
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) {
@@ -372,7 +405,7 @@ double featureDistance(Pair& pr, double stop2, Vec* cp, Vec* cq) {
         best = d2;
         bp = p[i] + s * P.e[i];
         bq = q[j] + t * Q.e[j];
-        if (best <= stop2) goto finish;
+        if (best <= stop2 || optimal()) goto finish;
       }
     }
   }
@@ -380,7 +413,7 @@ double featureDistance(Pair& pr, double stop2, Vec* cp, Vec* cq) {
     if (!done_pv[k] && lb_pv[k] < best) {
       Vec c;
       bool face;
-      const double d2 = pointTri(Q, p[k], &c, &face);
+      const double d2 = (initEdgeNormals(Q), pointTri(Q, p[k], &c, &face));
       if (d2 < best) {
         best = d2;
         bp = p[k];
@@ -391,7 +424,7 @@ double featureDistance(Pair& pr, double stop2, Vec* cp, Vec* cq) {
     if (!done_qv[k] && lb_qv[k] < best) {
       Vec c;
       bool face;
-      const double d2 = pointTri(P, q[k], &c, &face);
+      const double d2 = (initEdgeNormals(P), pointTri(P, q[k], &c, &face));
       if (d2 < best) {
         best = d2;
         bp = c;
@@ -430,12 +463,60 @@ bool intersectOrTouch(Pair& pr, Vec* x, double* d2, Vec* cp, Vec* cq) {
 }  // namespace
 
 double pointTriangleSquaredDistance(const Vec& p, const Vec& a, const Vec& b, const Vec& c, Vec* closest) {
+  // The same computation as pointTri, written for one query: no edge normals are stored, each region test is
+  // a triple product n . (e_i x (p - v_i)) = m_i . (p - v_i).
+  const Vec ab = b - a, ac = c - a;
+  const Vec n = ab.cross(ac);
+  const double nn = n.squaredNorm();
+  if (nn > kFastSin2 * ab.squaredNorm() * ac.squaredNorm()) {
+    const Vec ap = p - a;
+    const Vec bc = c - b;
+    const double s0 = n.dot(ab.cross(ap));
+    const double s1 = n.dot(bc.cross(p - b));
+    const double s2 = n.dot(ap.cross(ac));  // (a - c) x (p - c) = ap x ac
+    if (s0 >= 0.0 && s1 >= 0.0 && s2 >= 0.0) {
+      const double h = n.dot(ap);
+      const double k = h / nn;
+      if (closest) *closest = p - k * n;
+      return h * k;
+    }
+    // The closest boundary point lies on an edge whose line separates p from the triangle.
+    double best = std::numeric_limits<double>::infinity(), t = 0.0;
+    const Vec* start = &a;
+    const Vec* dir = &ab;
+    if (!(s0 >= 0.0)) {
+      best = pointSegment(p, a, ab, ab.squaredNorm(), &t);
+    }
+    if (!(s1 >= 0.0)) {
+      double u;
+      const double d2 = pointSegment(p, b, bc, bc.squaredNorm(), &u);
+      if (!(d2 >= best)) {
+        best = d2;
+        t = u;
+        start = &b;
+        dir = &bc;
+      }
+    }
+    if (!(s2 >= 0.0)) {
+      // Edge c -> a as a + u (c - a) reversed: the same segment.
+      double u;
+      const double d2 = pointSegment(p, a, ac, ac.squaredNorm(), &u);
+      if (!(d2 >= best)) {
+        best = d2;
+        t = u;
+        start = &a;
+        dir = &ac;
+      }
+    }
+    if (closest) *closest = *start + t * *dir;
+    return best;
+  }
   const Vec v[3] = {a, b, c};
-  Tri t;
-  initTri(v, t);
-  initEdgeNormals(t);
+  Tri tri;
+  initTri(v, tri);
+  initEdgeNormals(tri);
   bool face;
-  return pointTri(t, p, closest, &face);
+  return pointTri(tri, p, closest, &face);
 }
 
 double segmentSegmentSquaredDistance(const Vec& p0, const Vec& p1, const Vec& q0, const Vec& q1, Vec* closest_p,

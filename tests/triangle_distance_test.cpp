@@ -510,7 +510,9 @@ TEST(TriangleTriangle, CoplanarSeparateTouchingAndOverlapping) {
     }
     const double d = checkPair(p, q, static_cast<double>(referenceTriangleTriangle(p, q)), 4.0);
     (d == 0 ? overlapping : separate)++;
-    if (k % 4 == 0) EXPECT_EQ(d, 0.0) << "touching coplanar triangles must be at distance exactly 0";
+    if (k % 4 == 0) {
+      EXPECT_EQ(d, 0.0) << "touching coplanar triangles must be at distance exactly 0";
+    }
     const Triangle pr = transformed(p, r, o), qr = transformed(q, r, o);
     checkPair(pr, qr, static_cast<double>(referenceTriangleTriangle(pr, qr)), 5.0);
   }
@@ -547,7 +549,9 @@ TEST(TriangleTriangle, TouchingAtAVertexOrAlongAnEdgeIsDistanceZero) {
       }
     }
     const double d = checkPair(p, q, static_cast<double>(referenceTriangleTriangle(p, q)), extent(p, q));
-    if (k % 4 != 3) EXPECT_EQ(d, 0.0) << "triangles sharing a point must be at distance exactly 0";
+    if (k % 4 != 3) {
+      EXPECT_EQ(d, 0.0) << "triangles sharing a point must be at distance exactly 0";
+    }
   }
 }
 
@@ -629,7 +633,9 @@ TEST(TriangleTriangle, IntersectionTestAgreesWithDistanceUnderRounding) {
       const bool hit = cfl::trianglesIntersect(p.data(), qt.data(), &x);
       const double d2 = cfl::triangleTriangleSquaredDistance(p.data(), qt.data());
       EXPECT_EQ(hit, d2 == 0.0) << "t " << t << " d2 " << d2;
-      if (d2 > 1e-24) EXPECT_FALSE(hit);
+      if (d2 > 1e-24) {
+        EXPECT_FALSE(hit);
+      }
     }
   }
 }

@@ -130,8 +130,9 @@ TriangleMesh makeWavySheet(double size, double amplitude, int n) {
   return mesh;
 }
 
-TriangleMesh makeMessyMesh() {
-  TriangleMesh mesh = makeTorus(1.0, 0.35, 16, 8);
+TriangleMesh makeMessyMesh(int major_segments, int minor_segments) {
+  if (major_segments < 8 || minor_segments < 6) throw std::invalid_argument("makeMessyMesh: torus too coarse");
+  TriangleMesh mesh = makeTorus(1.0, 0.35, major_segments, minor_segments);
   const int base_triangles = static_cast<int>(mesh.triangles.size());
   auto addVertex = [&](const Eigen::Vector3d& v) {
     mesh.vertices.push_back(v);
@@ -209,8 +210,8 @@ TriangleMesh merge(const TriangleMesh& a, const TriangleMesh& b) {
   return mesh;
 }
 
-TriangleMesh makeSelfIntersectingMesh() {
-  const TriangleMesh torus = makeTorus(1.0, 0.3, 16, 8);
+TriangleMesh makeSelfIntersectingMesh(int major_segments, int minor_segments) {
+  const TriangleMesh torus = makeTorus(1.0, 0.3, major_segments, minor_segments);
   // A second torus, standing up in the xz plane and shifted so that its tube cuts through the first's.
   TriangleMesh linked = torus;
   const Eigen::Matrix3d rotation = Eigen::AngleAxisd(0.5 * kPi, Eigen::Vector3d::UnitX()).toRotationMatrix();

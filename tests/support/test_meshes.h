@@ -43,12 +43,14 @@ TriangleMesh makeWavySheet(double size = 1.5, double amplitude = 0.4, int n = 16
 /// A torus with added junk that validateMesh must accept and the library must handle: zero-area triangles
 /// (three equal indices, two equal indices, exactly collinear corners), duplicated triangles (same indices,
 /// permuted indices, and copies with their own duplicated vertices), a fan of 4 triangles on one edge
-/// (non-manifold edge), flipped orientations, and an unused vertex far away.
-TriangleMesh makeMessyMesh();
+/// (non-manifold edge), flipped orientations, and an unused vertex far away. The torus has
+/// `major_segments` x `minor_segments` quads (at least 8 x 6, which the junk refers to).
+TriangleMesh makeMessyMesh(int major_segments = 16, int minor_segments = 8);
 
 /// Two closed shapes that pass through each other, as one soup: a torus and a box whose bar crosses the
-/// torus' tube, plus a second torus linked with the first.
-TriangleMesh makeSelfIntersectingMesh();
+/// torus' tube, plus a second torus whose tube cuts through the first's. Each torus has
+/// `major_segments` x `minor_segments` quads.
+TriangleMesh makeSelfIntersectingMesh(int major_segments = 16, int minor_segments = 8);
 
 /// A closed axis-aligned box, 12 triangles.
 TriangleMesh makeBox(const Eigen::Vector3d& min, const Eigen::Vector3d& max);

@@ -56,6 +56,8 @@ FCL_EXPORT std::size_t collide<double>(const CollisionGeometry<double>* o1, cons
 #include "cfl_fcl/cfl_geometry.h"
 
 #include <cfl/cfl_query.h>
+#include <fcl/geometry/shape/halfspace.h>
+#include <fcl/geometry/shape/plane.h>
 #include <cfl/error.h>
 
 #include <dlfcn.h>
@@ -64,6 +66,7 @@ FCL_EXPORT std::size_t collide<double>(const CollisionGeometry<double>* o1, cons
 #include <algorithm>
 #include <cstring>
 #include <iostream>
+#include <limits>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -221,6 +224,74 @@ void renameProxy(const fcl::BVHModel<fcl::OBBRSSd>* proxy, const CFLGeometry* cf
   if (proxy != nullptr && *o == proxy) *o = cfl;
 }
 
+// Plane and halfspace against a mesh, exactly. FCL 0.7 has no triangle distance for these two shapes (its GJK
+// gets no support function and crashes), so the adapter answers them itself: the signed distance to the
+// plane is linear, so its extremes over the mesh are at triangle corners. Reported like FCL's shape-mesh
+// pairs, mesh first: o1 = the CFL geometry, b1 = its triangle, o2 = the shape, b2 = NONE.
+double planeDistance(const CFLGeometry& c, const Transform& tf_c, const Geometry* shape, const Transform& tf_s,
+                     const fcl::DistanceRequest<double>& request, fcl::DistanceResult<double>& result) {
+  const bool halfspace = shape->getNodeType() == fcl::GEOM_HALFSPACE;
+  fcl::Vector3d n_S;
+  double d_S;
+  if (halfspace) {
+    const auto& h = static_cast<const fcl::Halfspace<double>&>(*shape);
+    n_S = h.n;
+    d_S = h.d;
+  } else {
+    const auto& p = static_cast<const fcl::Plane<double>&>(*shape);
+    n_S = p.n;
+    d_S = p.d;
+  }
+  const fcl::Vector3d n = tf_s.linear() * n_S;  // World plane: n . x = d.
+  const double d = d_S + n.dot(tf_s.translation());
+  const auto& corners = c.model().geometry.corners;
+  double best = std::numeric_limits<double>::infinity();
+  fcl::Vector3d on_mesh = fcl::Vector3d::Zero(), on_shape = fcl::Vector3d::Zero();
+  int best_triangle = -1;
+  for (std::size_t t = 0; t < corners.size(); ++t) {
+    fcl::Vector3d p[3];
+    double s[3];
+    for (int k = 0; k < 3; ++k) {
+      p[k] = tf_c * corners[t][k];
+      s[k] = n.dot(p[k]) - d;
+    }
+    if (halfspace) {
+      const int k = s[0] <= s[1] ? (s[0] <= s[2] ? 0 : 2) : (s[1] <= s[2] ? 1 : 2);
+      const double distance = std::max(s[k], 0.0);
+      if (distance < best) {
+        best = distance;
+        best_triangle = int(t);
+        on_mesh = p[k];
+        on_shape = s[k] > 0 ? fcl::Vector3d(p[k] - s[k] * n) : p[k];
+      }
+      continue;
+    }
+    // Plane: a triangle with corners on both sides (or on it) crosses it; the crossing point is on an edge.
+    for (int k = 0; k < 3; ++k) {
+      const int j = (k + 1) % 3;
+      if ((s[k] <= 0 && s[j] >= 0) || (s[k] >= 0 && s[j] <= 0)) {
+        const double w = s[k] == s[j] ? 0.0 : s[k] / (s[k] - s[j]);
+        best = 0;
+        best_triangle = int(t);
+        on_mesh = on_shape = p[k] + w * (p[j] - p[k]);
+        break;
+      }
+      if (std::abs(s[k]) < best) {
+        best = std::abs(s[k]);
+        best_triangle = int(t);
+        on_mesh = p[k];
+        on_shape = p[k] - s[k] * n;
+      }
+    }
+    if (best == 0) break;
+  }
+  if (request.enable_nearest_points)
+    result.update(best, &c, shape, best_triangle, fcl::DistanceResult<double>::NONE, on_mesh, on_shape);
+  else
+    result.update(best, &c, shape, best_triangle, fcl::DistanceResult<double>::NONE);
+  return best;
+}
+
 double distanceImpl(const Geometry* o1, const Transform& tf1, const Owner* owner1, const Geometry* o2,
                     const Transform& tf2, const Owner* owner2, const fcl::DistanceRequest<double>& request,
                     fcl::DistanceResult<double>& result) {
@@ -241,6 +312,8 @@ double distanceImpl(const Geometry* o1, const Transform& tf1, const Owner* owner
     report(cfl::computeDistance(c->model(), tf_c, *mesh, tf_other, options), cfl_is_first, o1, o2, request, result);
     return result.min_distance;
   }
+  if (other->getNodeType() == fcl::GEOM_PLANE || other->getNodeType() == fcl::GEOM_HALFSPACE)
+    return planeDistance(*c, tf_c, other, tf_other, request, result);
   const fcl::BVHModel<fcl::OBBRSSd>* proxy = &c->shapeProxy();
   const double d = requireFcl().distance_geometries(cfl_is_first ? proxy : o1, tf1, cfl_is_first ? o2 : proxy, tf2,
                                                     request, result);

@@ -5,6 +5,8 @@
 #include "detail/box_triangle_bound.h"
 #include "detail/nearest_triangle.h"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -78,6 +80,72 @@ std::int64_t physicalMemoryBytes() {
   return std::int64_t(pages) * page_size;
 }
 
+// Topology culling data for one edge of one triangle. Every point p in all three half-spaces
+// (p - a) . outward >= 0, (p - a) . (d - a) <= 0 and (p - b) . (d - b) <= 0, where (a, b) is the edge and d
+// the opposite corner, has its closest point of the triangle on the edge: projected into the triangle's
+// plane it lies beyond the edge's line and outside the Voronoi regions of the other two edges' interiors.
+struct EdgeRegion {
+  Eigen::Vector3d a, b, outward, to_d_from_a, to_d_from_b;
+  int neighbours_begin = 0, neighbours_end = 0;  // other triangles sharing the edge, in edge_neighbours
+  bool usable = false;
+};
+
+struct Topology {
+  std::vector<std::array<EdgeRegion, 3>> edges;  // per triangle
+  std::vector<int> edge_neighbours;
+};
+
+Topology makeTopology(const MeshModel& geometry) {
+  const auto& triangles = geometry.mesh.triangles;
+  std::unordered_map<std::uint64_t, std::vector<int>> by_edge;
+  auto key = [](int u, int v) { return (std::uint64_t(std::min(u, v)) << 32) | std::uint32_t(std::max(u, v)); };
+  for (int t = 0; t < int(triangles.size()); ++t) {
+    for (int e = 0; e < 3; ++e) by_edge[key(triangles[t][e], triangles[t][(e + 1) % 3])].push_back(t);
+  }
+  Topology topology;
+  topology.edges.resize(triangles.size());
+  for (int t = 0; t < int(triangles.size()); ++t) {
+    const auto& c = geometry.corners[t];
+    const Eigen::Vector3d normal = (c[1] - c[0]).cross(c[2] - c[0]);
+    const double scale = std::max({(c[1] - c[0]).squaredNorm(), (c[2] - c[1]).squaredNorm(), (c[0] - c[2]).squaredNorm()});
+    const bool degenerate = !(normal.norm() > 1e-8 * scale);
+    for (int e = 0; e < 3; ++e) {
+      EdgeRegion& region = topology.edges[t][e];
+      const int u = triangles[t][e], v = triangles[t][(e + 1) % 3];
+      if (degenerate || u == v) continue;
+      region.a = c[e];
+      region.b = c[(e + 1) % 3];
+      const Eigen::Vector3d d = c[(e + 2) % 3];
+      Eigen::Vector3d outward = (region.b - region.a).cross(normal);
+      if (outward.dot(d - region.a) > 0) outward = -outward;
+      region.outward = outward;
+      region.to_d_from_a = d - region.a;
+      region.to_d_from_b = d - region.b;
+      region.neighbours_begin = int(topology.edge_neighbours.size());
+      for (int other : by_edge[key(u, v)]) {
+        if (other != t) topology.edge_neighbours.push_back(other);
+      }
+      region.neighbours_end = int(topology.edge_neighbours.size());
+      region.usable = region.neighbours_end > region.neighbours_begin;
+    }
+  }
+  return topology;
+}
+
+// Whether all of the voxel (its eight corners; the half-spaces are convex) lies strictly inside the edge's
+// region, with a margin so that rounding never decides.
+bool voxelInEdgeRegion(const EdgeRegion& region, const Eigen::Vector3d corners[8], double margin) {
+  const double outward_margin = margin * region.outward.norm();
+  const double da_margin = margin * region.to_d_from_a.norm();
+  const double db_margin = margin * region.to_d_from_b.norm();
+  for (int n = 0; n < 8; ++n) {
+    if ((corners[n] - region.a).dot(region.outward) <= outward_margin) return false;
+    if ((corners[n] - region.a).dot(region.to_d_from_a) >= -da_margin) return false;
+    if ((corners[n] - region.b).dot(region.to_d_from_b) >= -db_margin) return false;
+  }
+  return true;
+}
+
 struct RowLists {
   std::vector<std::int32_t> ids;      // the row's lists, one after another
   std::vector<std::uint32_t> counts;  // length of each voxel's list
@@ -133,6 +201,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   }
 
   const int threads = workerCount(options.threads);
+  const Topology topology = options.topology_culling ? makeTopology(geometry) : Topology();
   const auto& progress = options.progress;
 
   // 1. Distance field at the grid corners, with the nearest triangle of each. Rows are walked in order so
@@ -178,6 +247,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
     out.lower_bounds.reserve(grid.dims[0]);
     std::vector<int> candidates;
     std::vector<int> upper_candidates;
+    std::vector<bool> droppable;
     for (int i = 0; i < grid.dims[0]; ++i) {
       Eigen::Vector3d corners[8];
       upper_candidates.clear();
@@ -257,6 +327,43 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
         ++count;
         lower = std::min(lower, d_min);
       }
+      if (options.topology_culling && count > 1) {
+        // Paper section 3.6, in a form that is provably conservative on any mesh: triangle i leaves the
+        // list when every point of the voxel has its closest point of i on an edge shared with a triangle j
+        // that stays (j is then at least as close everywhere; a j missing from the list is strictly beaten
+        // by another triangle, and so is i).
+        std::int32_t* list = out.ids.data() + (out.ids.size() - count);
+        const double margin = 1e-9 * grid.voxel_size;
+        droppable.assign(count, false);
+        for (std::uint32_t n = 0; n < count; ++n) {
+          for (const EdgeRegion& region : topology.edges[list[n]]) {
+            if (region.usable && voxelInEdgeRegion(region, corners, margin)) {
+              droppable[n] = true;
+              break;
+            }
+          }
+        }
+        auto staysInList = [&](int triangle) {
+          const std::int32_t* found = std::lower_bound(list, list + count, triangle);
+          return found == list + count || *found != triangle || !droppable[found - list];
+        };
+        std::uint32_t kept = 0;
+        for (std::uint32_t n = 0; n < count; ++n) {
+          bool drop = false;
+          if (droppable[n]) {
+            for (const EdgeRegion& region : topology.edges[list[n]]) {
+              if (!region.usable || !voxelInEdgeRegion(region, corners, margin)) continue;
+              for (int m = region.neighbours_begin; m < region.neighbours_end && !drop; ++m) {
+                drop = staysInList(topology.edge_neighbours[m]);
+              }
+              if (drop) break;
+            }
+          }
+          if (!drop) list[kept++] = list[n];
+        }
+        out.ids.resize(out.ids.size() - (count - kept));
+        count = kept;
+      }
       out.counts.push_back(count);
       // The lower bound of the voxel: the closest triangle to any of its points is listed, so the smallest
       // listed dmin bounds the voxel-mesh distance from below.
@@ -322,6 +429,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
                                     geometry.bvh.nodes.size() * sizeof(BvhNode) +
                                     geometry.bvh.triangle_ids.size() * sizeof(std::int32_t));
   stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (progress) progress(1.0);
   return model;
 }
 

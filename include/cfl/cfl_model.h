@@ -22,9 +22,12 @@ struct BuildOptions {
   /// The grid covers the mesh's bounding box scaled by this factor about its center (paper: 2). Must be
   /// >= 1. Parts of the other mesh outside the grid are still answered exactly, through the mesh's Bvh.
   double padding = 2.0;
-  /// Paper section 3.6: drop a triangle from voxels outside its approximate Voronoi region, bounded by a
-  /// plane through each edge shared with exactly one other consistently oriented triangle. Off by default:
-  /// the planes are a heuristic, and only where the tests prove them conservative is the option safe.
+  /// Topology culling (paper section 3.6, made provably conservative): triangle i leaves a voxel's list
+  /// when, for every point of the voxel, i's closest point lies on an edge (shared vertex indices) that a
+  /// triangle j also has and j stays in the list, so j is at least as close. The paper's plane through
+  /// the edge along the mean normal is not conservative for finite or concave triangles; these half-spaces
+  /// are, on any mesh (open, non-manifold, unoriented). Off by default: it costs build time and shortens
+  /// the lists only slightly, since the dmin/dmax and cone tests already drop most such triangles.
   bool topology_culling = false;
   /// Worker threads for the build; 0 means every hardware thread. The result does not depend on it.
   int threads = 0;

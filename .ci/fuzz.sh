@@ -24,6 +24,7 @@ fi
 cmake --build build-fuzz --target "${targets[@]}" -j"$jobs"
 
 export ASAN_OPTIONS="abort_on_error=1:detect_leaks=1"
+export LSAN_OPTIONS="suppressions=$root/fuzz/lsan_suppressions.txt:print_suppressions=0"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 status=0
 for target in "${targets[@]}"; do

@@ -299,7 +299,6 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       const Eigen::Vector3d direction_k = cone_usable ? Eigen::Vector3d(axis_k / axis_k_length) : Eigen::Vector3d::Zero();
       const double half_angle_k = cone_usable ? std::asin(reach_k / axis_k_length) : 0.0;
       trianglesNear(geometry, center, upper_bound + half_diagonal, candidates);
-      std::sort(candidates.begin(), candidates.end());
       std::uint32_t count = 0;
       double lower = kInfinity;
       for (int t : candidates) {
@@ -307,7 +306,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
         Eigen::Vector3d closest;
         const double d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
         if (d_center - half_diagonal > upper_bound) continue;
-        const double d_min = detail::cubeTriangleLowerBound(center, half, c[0], c[1], c[2], closest);
+        double d_min = detail::cubeTriangleQuickBound(center, half, c[0], c[1], c[2], closest);
         if (d_min > upper_bound) continue;
         if (cone_usable && t != center_triangle) {
           const Eigen::Vector4d& sphere_i = geometry.spheres[t];
@@ -323,10 +322,15 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
             if (d_center - center_distance > half_diagonal * gradient * (1 + 1e-9) + margin) continue;
           }
         }
+        // The full separating-axis bound last: it is the costly one, and most candidates are decided above.
+        d_min = std::max(d_min, detail::cubeTriangleLowerBound(center, half, c[0], c[1], c[2], closest));
+        if (d_min > upper_bound) continue;
         out.ids.push_back(t);
         ++count;
         lower = std::min(lower, d_min);
       }
+      // Lists are kept sorted: deduplication compares them, and the query's mutual test searches them.
+      std::sort(out.ids.end() - count, out.ids.end());
       if (options.topology_culling && count > 1) {
         // Paper section 3.6, in a form that is provably conservative on any mesh: triangle i leaves the
         // list when every point of the voxel has its closest point of i on an edge shared with a triangle j

@@ -15,6 +15,20 @@ namespace cfl::detail {
 /// and the gap along the direction from the center to `closest`, the triangle's closest point to the center.
 /// Exactly 0 when the cube and triangle intersect (the 13 axes decide intersection exactly); never above the
 /// true distance.
+/// The two cheap terms of cubeTriangleLowerBound (bounding-box gap and center-direction gap).
+inline double cubeTriangleQuickBound(const Eigen::Vector3d& center, double half, const Eigen::Vector3d& a,
+                                     const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                                     const Eigen::Vector3d& closest) {
+  const Eigen::Vector3d v0 = a - center, v1 = b - center, v2 = c - center;
+  const Eigen::Vector3d lo = v0.cwiseMin(v1).cwiseMin(v2), hi = v0.cwiseMax(v1).cwiseMax(v2);
+  const Eigen::Vector3d axis_gap = (lo.array() - half).max(-hi.array() - half).max(0.0).matrix();
+  double bound = axis_gap.norm();
+  const Eigen::Vector3d to_closest = closest - center;
+  const double distance = to_closest.norm();
+  if (distance > 0) bound = std::max(bound, distance - half * (to_closest / distance).cwiseAbs().sum());
+  return std::max(bound, 0.0);
+}
+
 inline double cubeTriangleLowerBound(const Eigen::Vector3d& center, double half, const Eigen::Vector3d& a,
                                      const Eigen::Vector3d& b, const Eigen::Vector3d& c,
                                      const Eigen::Vector3d& closest) {

@@ -2,6 +2,8 @@
 
 #include "adapter_internal.h"
 
+#include <cfl/cfl_file.h>
+
 #include <climits>
 #include <string>
 #include <utility>
@@ -42,6 +44,11 @@ CFLGeometry::CFLGeometry(std::shared_ptr<const cfl::CflModel> model) : model_(st
   if (model_ == nullptr) throw cfl::Error("CFLGeometry: the shared cfl::CflModel is null");
   detail::checkEntryPoints();
   computeLocalAABB();
+}
+
+std::shared_ptr<CFLGeometry> CFLGeometry::load(const std::string& path) {
+  detail::checkEntryPoints();
+  return std::make_shared<CFLGeometry>(std::make_shared<const cfl::CflModel>(cfl::loadCflModel(path)));
 }
 
 void CFLGeometry::computeLocalAABB() {

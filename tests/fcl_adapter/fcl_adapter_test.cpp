@@ -3,6 +3,7 @@
 // triangles, on randomized poses from overlapping to far apart, on the bunny and a torus knot.
 
 #include "cfl_fcl/cfl_geometry.h"
+#include "cfl/cfl_file.h"
 #include "plain_fcl.h"
 #include "support/test_meshes.h"
 
@@ -11,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <random>
 #include <string>
@@ -525,6 +527,31 @@ TEST(FclAdapterGeometry, GeometriesSharingOneModelGiveTheSameAnswers) {
     fcl::distance(shared.get(), p.a, m.obbrss.get(), p.b, request, r2);
     EXPECT_EQ(r1.min_distance, r2.min_distance);
     EXPECT_EQ(r2.o1, shared.get());
+  }
+}
+
+TEST(FclAdapterGeometry, GeometryLoadedFromASavedModelAnswersLikeTheOriginal) {
+  const Mesh& m = knot();
+  const std::string path = ::testing::TempDir() + "fcl_adapter_knot.cfl";
+  cfl::saveCflModel(m.cfl->model(), path);
+  const std::shared_ptr<CFLGeometry> loaded = CFLGeometry::load(path);
+  std::mt19937_64 rng(12);
+  for (int i = 0; i < 10; ++i) {
+    const Poses p = randomPoses(rng, m.diagonal);
+    fcl::DistanceRequestd request(true);
+    fcl::DistanceResultd original, reloaded;
+    fcl::distance(m.cfl.get(), p.a, m.obbrss.get(), p.b, request, original);
+    fcl::distance(loaded.get(), p.a, m.obbrss.get(), p.b, request, reloaded);
+    EXPECT_EQ(original.min_distance, reloaded.min_distance);
+    EXPECT_EQ(original.b1, reloaded.b1);
+    EXPECT_EQ(reloaded.o1, loaded.get());
+  }
+  std::remove(path.c_str());
+  try {
+    CFLGeometry::load(path);
+    FAIL() << "a missing file was accepted";
+  } catch (const cfl::Error& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
   }
 }
 

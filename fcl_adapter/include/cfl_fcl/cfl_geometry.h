@@ -14,9 +14,11 @@
 ///   - CFLGeometry / CFLGeometry: cfl::computeDistance on both models, cfl::computeCollision.
 ///   - CFLGeometry / fcl::BVHModel<BV> for every BV FCL ships: the same, with the BVHModel's triangles as the
 ///     other mesh (a cfl::MeshModel copy cached per BVHModel, see forgetBvhModel for its lifetime rule).
-///   - CFLGeometry / anything else (primitive shapes, planes, halfspaces, octrees): FCL's own algorithm for
-///     that object against a BVHModel<OBBRSS> of the same triangles, which the geometry builds on first use.
-///     Results are therefore exactly FCL's, including FCL's habit of reporting the mesh as o1 in both orders.
+///   - CFLGeometry / anything else (primitive shapes, octrees): FCL's own algorithm for that object against a
+///     BVHModel<OBBRSS> of the same triangles, which the geometry builds on first use. Results are therefore
+///     exactly FCL's, including FCL's habit of reporting the mesh as o1 (b1 = triangle) in both orders.
+///     Exception: the distance to a plane or halfspace, which FCL 0.7 cannot compute for meshes (its GJK
+///     crashes), is computed exactly by the adapter from the triangle corners and reported the same way.
 ///
 /// Results follow FCL's conventions for BVHModel meshes: world-frame nearest points when
 /// request.enable_nearest_points is set; b1/b2 are triangle ids in each model's own triangle list; o1/o2
@@ -66,9 +68,12 @@ class CFLGeometry final : public fcl::CollisionGeometry<double> {
       : CFLGeometry(verticesOf(model), trianglesOf(model), options) {}
 
   /// Wraps an existing model without copying it, so that many geometries share one precomputation.
-  /// Throws cfl::Error for a null model. (A loader from a .cfl file belongs here too: it will be a
-  /// `static std::shared_ptr<CFLGeometry> load(const std::string& path)` built on this constructor.)
+  /// Throws cfl::Error for a null model.
   explicit CFLGeometry(std::shared_ptr<const cfl::CflModel> model);
+
+  /// A geometry on a model saved with cfl::saveCflModel (no rebuild: load time is file reading). Throws
+  /// cfl::Error naming the path for a missing, unreadable or invalid file (see cfl::loadCflModel).
+  static std::shared_ptr<CFLGeometry> load(const std::string& path);
 
   CFLGeometry(const CFLGeometry&) = delete;
   CFLGeometry& operator=(const CFLGeometry&) = delete;

@@ -25,7 +25,7 @@ namespace cfl::tool {
 namespace {
 
 constexpr const char* kBenchUsage = R"(usage: cfl bench [A [B]] [--queries N] [--bands LIST] [--resolution N] [--seed S]
-                 [--repeats R] [--threads T] [--json OUT.json] [--plot OUT.png]
+                 [--repeats R] [--clock wall|cpu] [--threads T] [--json OUT.json] [--plot OUT.png]
 
 Times exact mesh-mesh distance queries of CFL (A's voxels, B as a plain mesh with its Bvh) against FCL 0.7
 fcl::distance on BVHModel<OBBRSS> and BVHModel<RSS> (enable_nearest_points = true), in one process, on the
@@ -52,6 +52,7 @@ Columns, per band:
   --seed S         random seed (default 1); the same seed gives the same poses here and in the
                    Google Benchmark suite cfl_distance_bench
   --repeats R      timed runs per pose and method (default 3)
+  --clock C        wall (default): elapsed time; cpu: the thread's CPU time, steadier on a loaded machine
   --threads T      CFL build threads (default: all)
   --json OUT       also write every figure as JSON
   --plot OUT.png   also draw median time per band and method on a log axis (needs gnuplot)
@@ -152,7 +153,7 @@ void writePlot(const std::string& png, const std::vector<BandReport>& bands, con
 
 int runBench(const std::vector<std::string>& raw, Streams io) {
   const ParsedArgs args = parseArgs(
-      raw, {{"queries"}, {"bands"}, {"resolution"}, {"seed"}, {"repeats"}, {"threads"}, {"json"}, {"plot"}});
+      raw, {{"queries"}, {"bands"}, {"resolution"}, {"seed"}, {"repeats"}, {"clock"}, {"threads"}, {"json"}, {"plot"}});
   if (args.has("help")) {
     io.out << kBenchUsage;
     return 0;
@@ -163,6 +164,9 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
       args.has("bands") ? parseBandList(*args.get("bands"), "--bands") : bench::defaultBands();
   const std::uint64_t seed = std::uint64_t(parseInteger(args.get("seed").value_or("1"), "--seed", 0, INT64_MAX));
   const int repeats = int(parseInteger(args.get("repeats").value_or("3"), "--repeats", 1, 1000));
+  const std::string clock_name = args.get("clock").value_or("wall");
+  if (clock_name != "wall" && clock_name != "cpu") throw UsageError("--clock: expected wall or cpu, got '" + clock_name + "'");
+  const Clock clock = clock_name == "cpu" ? Clock::kThreadCpu : Clock::kWall;
   BuildOptions options;
   options.resolution = int(parseInteger(args.get("resolution").value_or("0"), "--resolution", 0, 4096));
   options.threads = int(parseInteger(args.get("threads").value_or("0"), "--threads", 0, 1024));
@@ -194,8 +198,8 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
                    double(cfl_a.statistics.memory_bytes) / (1 << 20), model_b_seconds, obbrss_a.buildSeconds(),
                    rss_a.buildSeconds(), obbrss_b.buildSeconds(), rss_b.buildSeconds());
   io.out << format("queries: %d poses per band, seed %llu, each timed %d times per method (interleaved), "
-                   "microseconds per query\n\n",
-                   queries, static_cast<unsigned long long>(seed), repeats);
+                   "%s microseconds per query\n\n",
+                   queries, static_cast<unsigned long long>(seed), repeats, clock == Clock::kWall ? "wall" : "thread CPU");
   io.out << format("%-7s %9s | %8s %8s | %8s %8s | %8s %8s | %10s | %8s %8s | %8s %8s | %11s\n", "band",
                    "dist/diag", "CFL med", "p90", "OBBRSS", "p90", "RSS", "p90", "OBBRSS/CFL", "CFL N_p", "N_v",
                    "FCL N_p", "N_v", "max|d|/diag");
@@ -215,7 +219,7 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
   for (double band : bands) {
     const bench::BandPoses poses =
         bench::generateBandPoses(cfl_a.geometry.bounds, model_b.bounds, band, queries, seed, baseline);
-    const std::vector<MethodSamples> samples = timeMethods(poses.poses, methods, repeats);
+    const std::vector<MethodSamples> samples = timeMethods(poses.poses, methods, repeats, clock);
     BandReport r;
     r.band = band;
     r.target = poses.target_distance;
@@ -256,7 +260,7 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
     json << "{\n  \"mesh_a\": " << jsonString(path_a) << ",\n  \"mesh_b\": " << jsonString(path_b)
          << ",\n  \"triangles_a\": " << mesh_a.triangles.size() << ",\n  \"triangles_b\": " << model_b.mesh.triangles.size()
          << ",\n  \"diagonal\": " << jsonNumber(diagonal) << ",\n  \"queries_per_band\": " << queries
-         << ",\n  \"repeats\": " << repeats << ",\n  \"seed\": " << seed
+         << ",\n  \"repeats\": " << repeats << ",\n  \"clock\": " << jsonString(clock_name) << ",\n  \"seed\": " << seed
          << ",\n  \"cfl_model\": {\"resolution\": " << cfl_a.statistics.resolution
          << ", \"voxels\": " << cfl_a.statistics.voxel_count
          << ", \"average_list_length\": " << jsonNumber(cfl_a.statistics.average_list_length)

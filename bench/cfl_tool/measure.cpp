@@ -2,13 +2,28 @@
 
 #include "pose_generator.h"
 
+#include <time.h>
+
 #include <chrono>
 #include <numeric>
 
 namespace cfl::tool {
 
+namespace {
+
+double nowMicros(Clock clock) {
+  if (clock == Clock::kThreadCpu) {
+    timespec t{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return double(t.tv_sec) * 1e6 + double(t.tv_nsec) * 1e-3;
+  }
+  return std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+}  // namespace
+
 std::vector<MethodSamples> timeMethods(const std::vector<Eigen::Isometry3d>& poses,
-                                       const std::vector<TimedMethod>& methods, int repeats) {
+                                       const std::vector<TimedMethod>& methods, int repeats, Clock clock) {
   const std::size_t m = methods.size();
   std::vector<MethodSamples> out(m);
   if (poses.empty() || m == 0) return out;
@@ -23,10 +38,9 @@ std::vector<MethodSamples> timeMethods(const std::vector<Eigen::Isometry3d>& pos
     for (int r = 0; r < repeats; ++r) {
       for (std::size_t k = 0; k < m; ++k) {
         const std::size_t j = (i + std::size_t(r) + k) % m;
-        const auto start = std::chrono::steady_clock::now();
+        const double start = nowMicros(clock);
         const double d = methods[j].query(poses[i]);
-        const auto stop = std::chrono::steady_clock::now();
-        times[j].push_back(std::chrono::duration<double, std::micro>(stop - start).count());
+        times[j].push_back(nowMicros(clock) - start);
         if (r == 0) out[j].distances.push_back(d);
       }
     }

@@ -23,11 +23,17 @@ struct MethodSamples {
   std::vector<double> distances;
 };
 
+/// What a sample measures: elapsed wall time (what a caller waits), or the calling thread's CPU time, which
+/// leaves out the time the thread waits for a core on a loaded machine. Queries are single-threaded, so on
+/// an idle machine the two agree.
+enum class Clock { kWall, kThreadCpu };
+
 /// Times every method on every pose `repeats` times. Methods are interleaved pose by pose and their order
 /// rotates with the pose and the repeat, so drifts in clock speed, cache state or machine load hit all of
-/// them alike; every method first runs twice untimed to warm caches. steady_clock, one call per sample.
+/// them alike; every method first runs twice untimed to warm caches. One query per sample.
 std::vector<MethodSamples> timeMethods(const std::vector<Eigen::Isometry3d>& poses,
-                                       const std::vector<TimedMethod>& methods, int repeats);
+                                       const std::vector<TimedMethod>& methods, int repeats,
+                                       Clock clock = Clock::kWall);
 
 /// Mean of `values`; 0 when empty.
 double mean(const std::vector<double>& values);

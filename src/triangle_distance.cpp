@@ -15,8 +15,14 @@
 // - Segment-segment uses the closed form (Ericson, Real-Time Collision Detection, 5.1.9) when the segments are
 //   far from parallel, and the cross-product form of the same line parameter, whose error is second order in
 //   the direction error, when they are nearly parallel.
-// - Triangle-triangle: min over 6 vertex-face and 9 edge-edge pairs, with plane-distance lower bounds to skip
-//   pairs, plus edge-crossing tests so that intersecting triangles report distance 0 and a common point.
+// - Triangle-triangle: min over the 6 vertex-face and 9 edge-edge pairs. The vertex of each triangle nearest
+//   the other's plane goes first; a pair is skipped when its plane-distance lower bound is no better than the
+//   best so far; the search stops as soon as the best pair is certified optimal (P behind, Q in front of the
+//   planes normal to the connecting vector), which for random separated pairs is after ~3 kernel calls.
+//   Triangles whose planes do not separate them first get edge-crossing tests (6 at most), so intersecting
+//   triangles report distance 0 and a common point; contacts within the touching tolerance (64 eps of the
+//   size, plus the normals' direction error) are 0 too. trianglesIntersect runs the same decision code, so
+//   the two functions always agree.
 
 #include "cfl/triangle_distance.h"
 
@@ -409,6 +415,9 @@ double featureDistance(Pair& pr, double stop2, Vec* cp, Vec* cq) {
       }
     }
   }
+  // In exact arithmetic only the vertex nearest the other plane can be a vertex-face optimum (moving from any
+  // other vertex towards it lowers the plane distance before leaving the face's prism); the others are kept,
+  // behind their lower bounds, for near-ties under rounding and for degenerate partners.
   for (int k = 0; k < 3; ++k) {
     if (!done_pv[k] && lb_pv[k] < best) {
       Vec c;

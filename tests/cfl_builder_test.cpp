@@ -116,7 +116,7 @@ int checkConservative(const CflModel& model, const TriangleMesh& mesh, int sampl
                       const std::string& label) {
   test::Rng rng(seed);
   const double diagonal = boundingBox(mesh).diagonal();
-  const std::vector<Eigen::Vector3d> points = samplePoints(mesh, model.grid, samples, samples, samples / 5, rng);
+  const std::vector<Eigen::Vector3d> points = samplePoints(mesh, model.grid, samples, samples, samples / 2, rng);
   int failures = 0;
   for (const Eigen::Vector3d& p : points) {
     const double truth = test::referencePointMeshDistance(mesh, p);

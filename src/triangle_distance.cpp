@@ -386,7 +386,7 @@ double featureDistance(Pair& pr, double stop2, Vec* cp, Vec* cq) {
     best = d2;
     bp = p[k];
     bq = c;
-    if ((face && pr.sep_p) || best <= stop2) goto finish;
+    if ((face && pr.sep_p) || best <= stop2 || optimal()) goto finish;
   }
   {
     const int k = lb_qv[0] <= lb_qv[1] ? (lb_qv[0] <= lb_qv[2] ? 0 : 2) : (lb_qv[1] <= lb_qv[2] ? 1 : 2);

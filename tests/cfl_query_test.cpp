@@ -133,6 +133,9 @@ void checkResult(const DistanceResult& r, const DistanceResult& truth, const Sha
       problems << "  the returned pair is at " << pair << ", not at the returned distance " << r.distance << "\n";
     }
   }
+  if (r.counters.triangle_pairs < 1) {
+    problems << "  counters report " << r.counters.triangle_pairs << " triangle pairs, yet a pair was returned\n";
+  }
   if (!(std::abs((r.point_a - r.point_b).norm() - r.distance) <= tolerance)) {
     problems << "  |point_a - point_b| = " << (r.point_a - r.point_b).norm() << " != distance " << r.distance << "\n";
   }
@@ -324,6 +327,33 @@ TEST(ComputeDistance, IdenticalMeshesAtIdenticalPosesAreAtZero) {
       }
     }
   }
+}
+
+TEST(ComputeDistance, PosesFarFromTheWorldOriginStayExact) {
+  // Both meshes 1e4 diagonals from the world origin: the query must work in A's frame, not lose the
+  // distance in the rounding of world coordinates (1e4 * 1e-16 is far below the 1e-9 tolerance).
+  test::Rng rng(404);
+  Failures failures;
+  for (const PairCase& pair : {kPairs[0], kPairs[3], kPairs[6]}) {
+    const Shape& a = shape(pair.a);
+    const Shape& b = shape(pair.b);
+    for (double fraction : {0.0, 0.005, 0.1}) {
+      Pose pose = makePose(a, b, fraction, rng);
+      const Eigen::Vector3d offset = 1e4 * a.diagonal * Eigen::Vector3d(0.6, -0.48, 0.64);
+      pose.X_WA.translation() += offset;
+      pose.X_WB.translation() += offset;
+      pose.kind += ", far from the origin";
+      const DistanceResult truth = bruteForceDistance(a.model, pose.X_WA, b.model, pose.X_WB);
+      for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+        DistanceOptions options;
+        options.mode = mode;
+        checkResult(computeDistance(a.cfl, pose.X_WA, b.model, pose.X_WB, options), truth, a, b, pose, "far", failures);
+        checkResult(computeDistance(a.cfl, pose.X_WA, b.cfl, pose.X_WB, options), truth, a, b, pose, "far, CflModel B",
+                    failures);
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
 }
 
 TEST(ComputeDistance, MeshEntirelyOutsideTheGridIsExact) {

@@ -41,9 +41,17 @@ struct Scratch {
   std::vector<int> outside_triangles;
   struct HeapEntry {
     double lower_bound;
+    double size;  // radius of B's node: among entries that may touch A, the smallest goes first
     int node_b;
     int node_a;  // -1: B's node against A's grid; otherwise a node pair of the two Bvhs
-    bool operator<(const HeapEntry& other) const { return lower_bound > other.lower_bound; }  // min-heap
+    // Min-heap on the lower bound clamped at 0. Negative bounds say only "may overlap", and ordering by
+    // them would pop the largest nodes first: a breadth-first search where overlapping meshes need a
+    // depth-first dive to the first intersecting pair, which ends the query.
+    bool operator<(const HeapEntry& other) const {
+      const double key = std::max(lower_bound, 0.0), other_key = std::max(other.lower_bound, 0.0);
+      if (key != other_key) return key > other_key;
+      return size > other.size;
+    }
   };
   std::vector<HeapEntry> heap;
 
@@ -276,7 +284,7 @@ class Search {
     heap.clear();
     auto push = [&](double lower_bound, int node_b, int node_a) {
       if (lower_bound >= pruneThreshold()) return;
-      heap.push_back({lower_bound, node_b, node_a});
+      heap.push_back({lower_bound, nodes_b[node_b].radius, node_b, node_a});
       std::push_heap(heap.begin(), heap.end());
     };
     auto pushAgainstGrid = [&](int n) {

@@ -239,8 +239,9 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
     fail("grid voxel size is " + std::to_string(grid.voxel_size) + ", not a finite positive length");
   }
   for (int axis = 0; axis < 3; ++axis) {
-    if (grid.dims[axis] < 1) {
-      fail("grid dims[" + std::to_string(axis) + "] is " + std::to_string(grid.dims[axis]) + ", must be >= 1");
+    // INT_MAX is out too: VoxelGrid::cornerCount adds 1 to each dim in int arithmetic.
+    if (grid.dims[axis] < 1 || grid.dims[axis] == std::numeric_limits<int>::max()) {
+      fail("grid dims[" + std::to_string(axis) + "] is " + std::to_string(grid.dims[axis]) + ", must be >= 1 and < 2^31 - 1");
     }
   }
   // The dims must multiply to voxel_list's size, checked by division so that absurd dims (three ints

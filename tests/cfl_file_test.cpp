@@ -463,9 +463,10 @@ TEST_F(CflFileStructure, HugeGridDimsAreRefusedWithoutOverflow) {
   // Found by cfl_file_fuzzer: dims whose product overflows 64 bits must not be multiplied.
   const std::size_t dims = sectionBody(good_, "GRID") + 32;
   expectRefused(edited([&](Bytes& b) {
-                  for (int axis = 0; axis < 3; ++axis) putU32(b, dims + 4 * axis, 0x7FFFFFFFu);
+                  for (int axis = 0; axis < 3; ++axis) putU32(b, dims + 4 * axis, 0x7FFFFFFEu);
                 }),
-                "grid of 2147483647 x 2147483647 x 2147483647 voxels");
+                "grid of 2147483646 x 2147483646 x 2147483646 voxels");
+  expectRefused(edited([&](Bytes& b) { putU32(b, dims, 0x7FFFFFFFu); }), "dims[0] is 2147483647");
   expectRefused(edited([&](Bytes& b) { putU32(b, dims + 8, 0x40000000u); }), "voxel_list has");
 }
 

@@ -323,7 +323,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
           }
         }
         // The full separating-axis bound last: it is the costly one, and most candidates are decided above.
-        d_min = std::max(d_min, detail::cubeTriangleLowerBound(center, half, c[0], c[1], c[2], closest));
+        d_min = std::max(d_min, detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2]));
         if (d_min > upper_bound) continue;
         out.ids.push_back(t);
         ++count;

@@ -9,12 +9,6 @@
 
 namespace cfl::detail {
 
-/// A lower bound on the distance between the cube of center `center` and half edge `half` and the triangle
-/// (a, b, c). It is the largest of: the gap between the cube and the triangle's bounding box, the separating
-/// gaps along the triangle normal and the nine edge-cross-axis directions of the separating axis theorem,
-/// and the gap along the direction from the center to `closest`, the triangle's closest point to the center.
-/// Exactly 0 when the cube and triangle intersect (the 13 axes decide intersection exactly); never above the
-/// true distance.
 /// The two cheap terms of cubeTriangleLowerBound (bounding-box gap and center-direction gap).
 inline double cubeTriangleQuickBound(const Eigen::Vector3d& center, double half, const Eigen::Vector3d& a,
                                      const Eigen::Vector3d& b, const Eigen::Vector3d& c,
@@ -29,24 +23,11 @@ inline double cubeTriangleQuickBound(const Eigen::Vector3d& center, double half,
   return std::max(bound, 0.0);
 }
 
-inline double cubeTriangleLowerBound(const Eigen::Vector3d& center, double half, const Eigen::Vector3d& a,
-                                     const Eigen::Vector3d& b, const Eigen::Vector3d& c,
-                                     const Eigen::Vector3d& closest) {
+/// The separating-axis terms of cubeTriangleLowerBound: the gaps along the triangle normal and the nine
+/// edge-cross-axis directions (the box axes are in cubeTriangleQuickBound).
+inline double cubeTriangleSeparatingAxisBound(const Eigen::Vector3d& center, double half, const Eigen::Vector3d& a,
+                                              const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
   const Eigen::Vector3d v0 = a - center, v1 = b - center, v2 = c - center;
-  // Box axes: the triangle's bounding box against the cube gives a Euclidean gap, better than one axis.
-  const Eigen::Vector3d lo = v0.cwiseMin(v1).cwiseMin(v2), hi = v0.cwiseMax(v1).cwiseMax(v2);
-  const Eigen::Vector3d axis_gap = (lo.array() - half).max(-hi.array() - half).max(0.0).matrix();
-  double bound = axis_gap.norm();
-
-  // Direction from the center to its closest triangle point: the triangle lies beyond the plane through
-  // `closest` normal to it, the cube within e*|u|_1 of the center along it.
-  const Eigen::Vector3d to_closest = closest - center;
-  const double distance = to_closest.norm();
-  if (distance > 0) {
-    const Eigen::Vector3d u = to_closest / distance;
-    bound = std::max(bound, distance - half * u.cwiseAbs().sum());
-  }
-
   auto axisGap = [&](const Eigen::Vector3d& axis) {
     const double length = axis.norm();
     if (!(length > 1e-300)) return 0.0;
@@ -56,7 +37,7 @@ inline double cubeTriangleLowerBound(const Eigen::Vector3d& center, double half,
     return gap / length;
   };
   const Eigen::Vector3d e0 = v1 - v0, e1 = v2 - v1, e2 = v0 - v2;
-  bound = std::max(bound, axisGap(e0.cross(e1)));
+  double bound = axisGap(e0.cross(e1));
   const Eigen::Vector3d edges[3] = {e0, e1, e2};
   for (const Eigen::Vector3d& edge : edges) {
     bound = std::max(bound, axisGap(Eigen::Vector3d(0, -edge.z(), edge.y())));
@@ -64,6 +45,19 @@ inline double cubeTriangleLowerBound(const Eigen::Vector3d& center, double half,
     bound = std::max(bound, axisGap(Eigen::Vector3d(-edge.y(), edge.x(), 0)));
   }
   return std::max(bound, 0.0);
+}
+
+/// A lower bound on the distance between the cube of center `center` and half edge `half` and the triangle
+/// (a, b, c). It is the largest of: the gap between the cube and the triangle's bounding box, the separating
+/// gaps along the triangle normal and the nine edge-cross-axis directions of the separating axis theorem,
+/// and the gap along the direction from the center to `closest`, the triangle's closest point to the center.
+/// Exactly 0 when the cube and triangle intersect (the 13 axes decide intersection exactly); never above the
+/// true distance.
+inline double cubeTriangleLowerBound(const Eigen::Vector3d& center, double half, const Eigen::Vector3d& a,
+                                     const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                                     const Eigen::Vector3d& closest) {
+  return std::max(cubeTriangleQuickBound(center, half, a, b, c, closest),
+                  cubeTriangleSeparatingAxisBound(center, half, a, b, c));
 }
 
 }  // namespace cfl::detail

@@ -28,6 +28,14 @@ RigidTransform relativePose(const Eigen::Isometry3d& X_WA, const Eigen::Isometry
   return {R_AW * X_WB.linear(), R_AW * (X_WB.translation() - X_WA.translation())};
 }
 
+// Voxel index range of `grid` covering the box [lo, hi] (clamped to the grid).
+void voxelRange(const VoxelGrid& grid, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int first[3], int last[3]) {
+  for (int axis = 0; axis < 3; ++axis) {
+    first[axis] = std::clamp(int(std::floor((lo[axis] - grid.origin[axis]) / grid.voxel_size)), 0, grid.dims[axis] - 1);
+    last[axis] = std::clamp(int(std::floor((hi[axis] - grid.origin[axis]) / grid.voxel_size)), 0, grid.dims[axis] - 1);
+  }
+}
+
 // Scratch reused across queries on one thread, so queries allocate only while it grows.
 struct Scratch {
   std::vector<std::uint32_t> stamp;  // per triangle of A: the B leaf that last tested it
@@ -54,6 +62,7 @@ struct Scratch {
     }
   };
   std::vector<HeapEntry> heap;
+  std::vector<std::pair<int, int>> node_pairs;  // computeCollision's pending node pairs
 
   void beginQuery(std::size_t triangle_count) {
     if (stamp.size() < triangle_count) {
@@ -181,21 +190,12 @@ class Search {
     return std::max(field, box) - radius;
   }
 
-  // Voxel index range covering a box that lies inside the grid.
-  void voxelRange(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int first[3], int last[3]) const {
-    const VoxelGrid& grid = a_.grid;
-    for (int axis = 0; axis < 3; ++axis) {
-      first[axis] = std::clamp(int(std::floor((lo[axis] - grid.origin[axis]) / grid.voxel_size)), 0, grid.dims[axis] - 1);
-      last[axis] = std::clamp(int(std::floor((hi[axis] - grid.origin[axis]) / grid.voxel_size)), 0, grid.dims[axis] - 1);
-    }
-  }
-
   // Triangle tb of B against the CFLs of the voxels its bounding box covers. Every point of the triangle
   // lies in one of them, and each point's closest triangle of A is in its voxel's list, so the minimum over
   // these lists is the triangle's exact distance to A.
   void testTriangleAgainstLists(const PreparedTriangle& tb, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
     int first[3], last[3];
-    voxelRange(lo, hi, first, last);
+    voxelRange(a_.grid, lo, hi, first, last);
     const std::uint32_t generation = scratch_.nextGeneration();
     const VoxelGrid& grid = a_.grid;
     for (int k = first[2]; k <= last[2]; ++k) {
@@ -353,10 +353,7 @@ class Search {
     if (!(lo.array() >= box.min.array()).all() || !(hi.array() <= box.max.array()).all()) return true;
     const VoxelGrid& grid = b_model.grid;
     int first[3], last[3];
-    for (int axis = 0; axis < 3; ++axis) {
-      first[axis] = std::clamp(int(std::floor((lo[axis] - grid.origin[axis]) / grid.voxel_size)), 0, grid.dims[axis] - 1);
-      last[axis] = std::clamp(int(std::floor((hi[axis] - grid.origin[axis]) / grid.voxel_size)), 0, grid.dims[axis] - 1);
-    }
+    voxelRange(grid, lo, hi, first, last);
     for (int k = first[2]; k <= last[2]; ++k) {
       for (int jj = first[1]; jj <= last[1]; ++jj) {
         for (int i = first[0]; i <= last[0]; ++i) {
@@ -402,7 +399,7 @@ class Search {
           continue;
         }
         int first[3], last[3];
-        voxelRange(lo, hi, first, last);
+        voxelRange(a_.grid, lo, hi, first, last);
         for (int k = first[2]; k <= last[2]; ++k) {
           for (int j = first[1]; j <= last[1]; ++j) {
             for (int i = first[0]; i <= last[0]; ++i) {
@@ -553,15 +550,13 @@ bool computeCollision(const MeshModel& a, const Eigen::Isometry3d& X_WA, const M
   if (a.bvh.nodes.empty() || b.bvh.nodes.empty()) return false;
   std::size_t found = 0;
   const std::size_t limit = contacts ? std::max<std::size_t>(max_contacts, 1) : 1;
-  struct Pair {
-    int a, b;
-  };
-  std::vector<Pair> stack{{0, 0}};
+  auto& stack = tls_scratch.node_pairs;
+  stack.assign(1, {0, 0});
   while (!stack.empty() && found < limit) {
-    const Pair pair = stack.back();
+    const auto [node_a, node_b] = stack.back();
     stack.pop_back();
-    const BvhNode& na = a.bvh.nodes[pair.a];
-    const BvhNode& nb = b.bvh.nodes[pair.b];
+    const BvhNode& na = a.bvh.nodes[node_a];
+    const BvhNode& nb = b.bvh.nodes[node_b];
     const Eigen::Vector3d center_b = X_AB.apply(nb.center);
     // Overlap needs the sphere of B's node to reach A's box and A's sphere.
     if (detail::pointBoxSquaredDistance(center_b, na.box) > nb.radius * nb.radius) continue;
@@ -584,11 +579,11 @@ bool computeCollision(const MeshModel& a, const Eigen::Isometry3d& X_WA, const M
     }
     const bool split_a = !na.isLeaf() && (nb.isLeaf() || na.radius >= nb.radius);
     if (split_a) {
-      stack.push_back({na.first, pair.b});
-      stack.push_back({na.first + 1, pair.b});
+      stack.push_back({na.first, node_b});
+      stack.push_back({na.first + 1, node_b});
     } else {
-      stack.push_back({pair.a, nb.first});
-      stack.push_back({pair.a, nb.first + 1});
+      stack.push_back({node_a, nb.first});
+      stack.push_back({node_a, nb.first + 1});
     }
   }
   return found > 0;

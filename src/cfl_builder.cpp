@@ -146,8 +146,15 @@ bool voxelInEdgeRegion(const EdgeRegion& region, const Eigen::Vector3d corners[8
   return true;
 }
 
+// dmin in units of `unit`, rounded down and saturated, so that unit * result <= dmin (a lower bound).
+std::uint8_t quantizeEntryBound(double d_min, double unit) {
+  const double units = std::floor(d_min * (1 - 1e-9) / unit);
+  return static_cast<std::uint8_t>(std::clamp(units, 0.0, 255.0));
+}
+
 struct RowLists {
   std::vector<std::int32_t> ids;      // the row's lists, one after another
+  std::vector<std::uint8_t> bounds;   // per entry of ids: its quantized dmin (CflModel::list_entry_bounds)
   std::vector<std::uint32_t> counts;  // length of each voxel's list
   std::vector<double> lower_bounds;   // per voxel
 };
@@ -239,6 +246,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   std::vector<RowLists> row_lists(rows);
   const double half = 0.5 * grid.voxel_size;
   const double half_diagonal = std::sqrt(3.0) * half;
+  const double bound_unit = model.entryBoundUnit();
   parallelFor(rows, threads, progress, 0.2, 0.95, [&](std::int64_t row) {
     const int j = static_cast<int>(row % grid.dims[1]);
     const int k = static_cast<int>(row / grid.dims[1]);
@@ -248,6 +256,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
     std::vector<int> candidates;
     std::vector<int> upper_candidates;
     std::vector<bool> droppable;
+    std::vector<std::pair<std::uint8_t, std::int32_t>> sort_scratch;
     for (int i = 0; i < grid.dims[0]; ++i) {
       Eigen::Vector3d corners[8];
       upper_candidates.clear();
@@ -326,17 +335,28 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
         d_min = std::max(d_min, detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2]));
         if (d_min > upper_bound) continue;
         out.ids.push_back(t);
+        out.bounds.push_back(quantizeEntryBound(d_min, bound_unit));
         ++count;
         lower = std::min(lower, d_min);
       }
-      // Lists are kept sorted: deduplication compares them, and the query's mutual test searches them.
-      std::sort(out.ids.end() - count, out.ids.end());
+      // Sorted by id while culling (it searches the list), by (bound, id) once done.
+      sort_scratch.clear();
+      for (std::uint32_t n = 0; n < count; ++n) {
+        sort_scratch.push_back({out.bounds[out.bounds.size() - count + n], out.ids[out.ids.size() - count + n]});
+      }
+      std::sort(sort_scratch.begin(), sort_scratch.end(),
+                [](const auto& x, const auto& y) { return x.second < y.second; });
+      for (std::uint32_t n = 0; n < count; ++n) {
+        out.bounds[out.bounds.size() - count + n] = sort_scratch[n].first;
+        out.ids[out.ids.size() - count + n] = sort_scratch[n].second;
+      }
       if (options.topology_culling && count > 1) {
         // Paper section 3.6, in a form that is provably conservative on any mesh: triangle i leaves the
         // list when every point of the voxel has its closest point of i on an edge shared with a triangle j
         // that stays (j is then at least as close everywhere; a j missing from the list is strictly beaten
         // by another triangle, and so is i).
         std::int32_t* list = out.ids.data() + (out.ids.size() - count);
+        std::uint8_t* bounds = out.bounds.data() + (out.bounds.size() - count);
         const double margin = 1e-9 * grid.voxel_size;
         droppable.assign(count, false);
         for (std::uint32_t n = 0; n < count; ++n) {
@@ -363,10 +383,27 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
               if (drop) break;
             }
           }
-          if (!drop) list[kept++] = list[n];
+          if (!drop) {
+            bounds[kept] = bounds[n];
+            list[kept++] = list[n];
+          }
         }
         out.ids.resize(out.ids.size() - (count - kept));
+        out.bounds.resize(out.bounds.size() - (count - kept));
         count = kept;
+      }
+      // The query scans a list in this order and stops at the first entry whose bound reaches its best
+      // distance so far.
+      {
+        sort_scratch.clear();
+        for (std::uint32_t n = 0; n < count; ++n) {
+          sort_scratch.push_back({out.bounds[out.bounds.size() - count + n], out.ids[out.ids.size() - count + n]});
+        }
+        std::sort(sort_scratch.begin(), sort_scratch.end());
+        for (std::uint32_t n = 0; n < count; ++n) {
+          out.bounds[out.bounds.size() - count + n] = sort_scratch[n].first;
+          out.ids[out.ids.size() - count + n] = sort_scratch[n].second;
+        }
       }
       out.counts.push_back(count);
       // The lower bound of the voxel: the closest triangle to any of its points is listed, so the smallest
@@ -389,18 +426,22 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
     for (int i = 0; i < grid.dims[0]; ++i) {
       const std::int64_t v = grid.voxelIndex(i, j, k);
       const std::int32_t* list = in.ids.data() + offset;
+      const std::uint8_t* bounds = in.bounds.data() + offset;
       const std::uint32_t length = in.counts[i];
       offset += length;
       total_length += length;
       longest = std::max<std::int64_t>(longest, length);
       model.voxel_lower_bound[v] = in.lower_bounds[i];
       std::uint64_t hash = 1469598103934665603ull ^ length;
-      for (std::uint32_t n = 0; n < length; ++n) hash = (hash ^ std::uint32_t(list[n])) * 1099511628211ull;
+      for (std::uint32_t n = 0; n < length; ++n) {
+        hash = (hash ^ (std::uint32_t(list[n]) | std::uint64_t(bounds[n]) << 32)) * 1099511628211ull;
+      }
       auto& same_hash = lists_by_hash[hash];
       std::uint32_t found = std::numeric_limits<std::uint32_t>::max();
       for (std::uint32_t id : same_hash) {
         const std::uint32_t begin = model.list_offsets[id], end = model.list_offsets[id + 1];
-        if (end - begin == length && std::equal(list, list + length, model.list_triangles.begin() + begin)) {
+        if (end - begin == length && std::equal(list, list + length, model.list_triangles.begin() + begin) &&
+            std::equal(bounds, bounds + length, model.list_entry_bounds.begin() + begin)) {
           found = id;
           break;
         }
@@ -408,6 +449,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       if (found == std::numeric_limits<std::uint32_t>::max()) {
         found = static_cast<std::uint32_t>(model.list_offsets.size() - 1);
         model.list_triangles.insert(model.list_triangles.end(), list, list + length);
+        model.list_entry_bounds.insert(model.list_entry_bounds.end(), bounds, bounds + length);
         model.list_offsets.push_back(static_cast<std::uint32_t>(model.list_triangles.size()));
         same_hash.push_back(found);
       }
@@ -425,6 +467,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   stats.memory_bytes = std::int64_t(model.voxel_list.size() * sizeof(std::uint32_t) +
                                     model.list_offsets.size() * sizeof(std::uint32_t) +
                                     model.list_triangles.size() * sizeof(std::int32_t) +
+                                    model.list_entry_bounds.size() * sizeof(std::uint8_t) +
                                     model.voxel_lower_bound.size() * sizeof(double) +
                                     model.corner_distance.size() * sizeof(double) +
                                     geometry.mesh.vertices.size() * sizeof(Eigen::Vector3d) +

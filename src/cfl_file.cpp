@@ -54,6 +54,7 @@ constexpr std::uint32_t kTagGrid = makeTag("GRID");
 constexpr std::uint32_t kTagList = makeTag("LIST");
 constexpr std::uint32_t kTagBounds = makeTag("BNDS");
 constexpr std::uint32_t kTagStatistics = makeTag("STAT");
+constexpr std::uint32_t kTagEntryBounds = makeTag("LBND");
 
 constexpr std::size_t kGridSectionSize = 3 * 8 + 8 + 3 * 4 + 8 + 4;
 constexpr std::size_t kStatisticsSectionSize = 7 * 8;
@@ -134,8 +135,8 @@ class Writer {
   }
   template <typename T>
   void array(const std::vector<T>& values) {
-    static_assert(sizeof(T) == 4 || sizeof(T) == 8, "arrays hold 32-bit integers or doubles");
-    if (kBulkCopy) {
+    static_assert(sizeof(T) == 1 || sizeof(T) == 4 || sizeof(T) == 8, "arrays hold bytes, 32-bit integers or doubles");
+    if constexpr (kBulkCopy || sizeof(T) == 1) {
       const auto* p = reinterpret_cast<const unsigned char*>(values.data());
       bytes_.insert(bytes_.end(), p, p + sizeof(T) * values.size());
     } else if constexpr (sizeof(T) == 4) {
@@ -178,9 +179,9 @@ class Reader {
   // Fills `values` (already sized by a checked count) from the next sizeof(T) * size() bytes.
   template <typename T>
   void array(std::vector<T>& values, const char* what) {
-    static_assert(sizeof(T) == 4 || sizeof(T) == 8, "arrays hold 32-bit integers or doubles");
+    static_assert(sizeof(T) == 1 || sizeof(T) == 4 || sizeof(T) == 8, "arrays hold bytes, 32-bit integers or doubles");
     const unsigned char* p = take(sizeof(T) * values.size(), what);
-    if (kBulkCopy) {
+    if constexpr (kBulkCopy || sizeof(T) == 1) {
       if (!values.empty()) std::memcpy(values.data(), p, sizeof(T) * values.size());
     } else if constexpr (sizeof(T) == 4) {
       for (T& value : values) value = static_cast<T>(loadU32(p)), p += 4;
@@ -275,6 +276,10 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
     fail("last list offset is " + std::to_string(offsets.back()) + ", but list_triangles has " +
          std::to_string(model.list_triangles.size()) + " entries");
   }
+  if (model.list_entry_bounds.size() != model.list_triangles.size()) {
+    fail("list_triangles has " + std::to_string(model.list_triangles.size()) + " entries, but list_entry_bounds has " +
+         std::to_string(model.list_entry_bounds.size()));
+  }
   const std::size_t list_count = offsets.size() - 1;
   // Offsets first, all of them: a list's contents are only meaningful once its bounds are.
   for (std::size_t list = 0; list < list_count; ++list) {
@@ -287,17 +292,21 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
     const std::uint32_t begin = offsets[list], end = offsets[list + 1];
     if (end == begin) fail("list " + std::to_string(list) + " is empty (every CFL holds at least one triangle)");
     std::int64_t previous = -1;
+    int previous_bound = 0;
     for (std::uint32_t i = begin; i < end; ++i) {
       const std::int32_t id = model.list_triangles[i];
+      const int bound = model.list_entry_bounds[i];
       if (id < 0 || static_cast<std::size_t>(id) >= triangle_count) {
         fail("list " + std::to_string(list) + " holds triangle id " + std::to_string(id) + ", out of range [0, " +
              std::to_string(triangle_count) + ")");
       }
-      if (id <= previous) {
-        fail("list " + std::to_string(list) + " is not sorted increasingly (triangle " + std::to_string(id) +
-             " after " + std::to_string(previous) + ")");
+      if (bound < previous_bound || (bound == previous_bound && id <= previous)) {
+        fail("list " + std::to_string(list) + " is not sorted by (entry bound, id) (triangle " + std::to_string(id) +
+             " with bound " + std::to_string(bound) + " after triangle " + std::to_string(previous) +
+             " with bound " + std::to_string(previous_bound) + ")");
       }
       previous = id;
+      previous_bound = bound;
     }
   }
   for (std::size_t v = 0; v < model.voxel_list.size(); ++v) {
@@ -362,8 +371,9 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
   const std::uint64_t list_size =
       24 + 4 * (model.voxel_list.size() + model.list_offsets.size() + model.list_triangles.size());
   const std::uint64_t bounds_size = 16 + 8 * (model.voxel_lower_bound.size() + model.corner_distance.size());
-  const std::uint64_t payload_size = 5 * kSectionHeaderSize + mesh_size + kGridSectionSize + list_size +
-                                     bounds_size + kStatisticsSectionSize;
+  const std::uint64_t entry_bounds_size = 8 + model.list_entry_bounds.size();
+  const std::uint64_t payload_size = 6 * kSectionHeaderSize + mesh_size + kGridSectionSize + list_size +
+                                     entry_bounds_size + bounds_size + kStatisticsSectionSize;
 
   Writer out(kHeaderSize + payload_size);
   auto& bytes = out.bytes();
@@ -398,6 +408,10 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
   out.array(model.voxel_list);
   out.array(model.list_offsets);
   out.array(model.list_triangles);
+
+  out.section(kTagEntryBounds, entry_bounds_size);
+  out.u64(model.list_entry_bounds.size());
+  out.array(model.list_entry_bounds);
 
   out.section(kTagBounds, bounds_size);
   out.u64(model.voxel_lower_bound.size());
@@ -444,8 +458,8 @@ std::uint64_t checkHeader(const unsigned char* data, std::size_t available, std:
     fail("bad endianness marker (bytes " + hexBytes(data + 8, 4) + ", expected 04 03 02 01)");
   }
   const std::uint32_t version = loadU32(data + 12);
-  if (version != kCflFileVersion) {
-    fail("format version " + std::to_string(version) + " is not supported (this library reads version " +
+  if (version != 1 && version != kCflFileVersion) {
+    fail("format version " + std::to_string(version) + " is not supported (this library reads versions 1 to " +
          std::to_string(kCflFileVersion) + ")");
   }
   const std::uint32_t header_crc = detail::crc32(data, 28);
@@ -480,7 +494,9 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
 
   CflModel model;
   TriangleMesh mesh;
-  bool seen_mesh = false, seen_grid = false, seen_list = false, seen_bounds = false, seen_statistics = false;
+  bool seen_mesh = false, seen_grid = false, seen_list = false, seen_bounds = false, seen_statistics = false,
+       seen_entry_bounds = false;
+  const std::uint32_t version = loadU32(data + 12);
   Reader payload(data + kHeaderSize, payload_size, name);
   while (payload.remaining() > 0) {
     const std::size_t section_offset = kHeaderSize + payload.position();
@@ -540,6 +556,14 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
       in.array(model.list_offsets, "list_offsets");
       model.list_triangles.resize(id_count);
       in.array(model.list_triangles, "list_triangles");
+    } else if (tag == kTagEntryBounds && version >= 2) {
+      once(seen_entry_bounds);
+      const std::size_t entry_count = in.count(1, "list_entry_bounds size");
+      if (in.remaining() < entry_count) {
+        in.fail("array size " + std::to_string(entry_count) + " does not fit in the section");
+      }
+      model.list_entry_bounds.resize(entry_count);
+      in.array(model.list_entry_bounds, "list_entry_bounds");
     } else if (tag == kTagBounds) {
       once(seen_bounds);
       const std::size_t voxel_count = in.count(8, "voxel_lower_bound size");
@@ -572,6 +596,9 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
   const char* missing = !seen_mesh ? "MESH" : !seen_grid ? "GRID" : !seen_list ? "LIST" : !seen_bounds ? "BNDS"
                         : !seen_statistics ? "STAT" : nullptr;
   if (missing) fail(std::string("required section ") + missing + " is missing");
+  if (version >= 2 && !seen_entry_bounds) fail("required section LBND is missing");
+  // Version 1 lists are sorted by id and carry no bounds: bound 0 for every entry is true and keeps them sorted.
+  if (version == 1) model.list_entry_bounds.assign(model.list_triangles.size(), 0);
 
   try {
     model.geometry = makeMeshModel(std::move(mesh));

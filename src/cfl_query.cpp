@@ -204,8 +204,16 @@ class Search {
           const std::int64_t v = grid.voxelIndex(i, j, k);
           ++counters_.voxel_tests;
           if (a_.voxel_lower_bound[v] >= pruneThreshold()) continue;
-          for (const std::int32_t* it = a_.listBegin(v); it != a_.listEnd(v); ++it) {
-            const int t = *it;
+          // The part of tb inside this voxel is at least an entry's bound from its triangle, and any other
+          // part of tb lies in a voxel of its own: once the bounds reach the best distance, the rest of this
+          // list cannot give a closer pair. Entries are sorted by bound, nearest first.
+          const std::int32_t* ids = a_.listBegin(v);
+          const std::uint8_t* bounds = a_.listBoundsBegin(v);
+          const std::ptrdiff_t length = a_.listEnd(v) - ids;
+          const double unit = a_.entryBoundUnit();
+          for (std::ptrdiff_t n = 0; n < length; ++n) {
+            if (bounds[n] * unit >= pruneThreshold()) break;
+            const int t = ids[n];
             if (scratch_.stamp[t] == generation) continue;
             scratch_.stamp[t] = generation;
             testPairIfClose(t, tb);
@@ -304,7 +312,9 @@ class Search {
       std::pop_heap(heap.begin(), heap.end());
       const Scratch::HeapEntry entry = heap.back();
       heap.pop_back();
-      if (entry.lower_bound >= pruneThreshold()) break;
+      // Distance 0 cannot be beaten; pending entries with negative bounds (which only say "may overlap")
+      // would otherwise keep the search going.
+      if (entry.lower_bound >= pruneThreshold() || best_ <= 0) break;
       const BvhNode& node_b = nodes_b[entry.node_b];
       if (entry.node_a < 0) {
         if (node_b.isLeaf()) {
@@ -359,7 +369,7 @@ class Search {
         for (int i = first[0]; i <= last[0]; ++i) {
           const std::int64_t v = grid.voxelIndex(i, jj, k);
           ++counters_.voxel_tests;
-          if (std::binary_search(b_model.listBegin(v), b_model.listEnd(v), j)) return true;
+          if (std::find(b_model.listBegin(v), b_model.listEnd(v), j) != b_model.listEnd(v)) return true;
         }
       }
     }

@@ -131,6 +131,19 @@ int checkConservative(const CflModel& model, const TriangleMesh& mesh, int sampl
                         << p.transpose() << "): list distance " << from_list << ", true distance " << truth;
         }
       }
+      // Every entry's bound is a lower bound on its triangle's distance from every point of the voxel:
+      // the query stops scanning a list at the first bound that reaches its best distance.
+      const std::uint8_t* bounds = model.listBoundsBegin(v);
+      for (const std::int32_t* t = model.listBegin(v); t != model.listEnd(v); ++t, ++bounds) {
+        const auto& tri = mesh.triangles[*t];
+        const double distance = std::sqrt(test::referencePointTriangleSquaredDistance(
+            p, mesh.vertices[tri[0]], mesh.vertices[tri[1]], mesh.vertices[tri[2]]));
+        const double bound = *bounds * model.entryBoundUnit();
+        if (!(bound <= distance * (1 + 1e-12) + 1e-15 * diagonal) && ++failures <= 5) {
+          ADD_FAILURE() << label << ": voxel " << v << " entry bound " << bound << " of triangle " << *t
+                        << " exceeds its distance " << distance << " from (" << p.transpose() << ")";
+        }
+      }
       if (!(model.voxel_lower_bound[v] <= truth * (1 + 1e-12) + 1e-15 * diagonal)) {
         if (++failures <= 5) {
           ADD_FAILURE() << label << ": voxel " << v << " lower bound " << model.voxel_lower_bound[v]
@@ -238,16 +251,21 @@ TEST(CflBuilder, StorageIsWellFormedAndStatisticsMatchIt) {
       EXPECT_EQ(model.geometry.mesh.triangles, named.mesh.triangles);
 
       std::int64_t total = 0, longest = 0;
-      std::set<std::vector<std::int32_t>> distinct;
+      ASSERT_EQ(model.list_entry_bounds.size(), model.list_triangles.size());
+      std::set<std::vector<std::pair<int, std::int32_t>>> distinct;
       for (std::int64_t v = 0; v < voxels; ++v) {
         ASSERT_LT(model.voxel_list[v] + 1, model.list_offsets.size());
-        std::vector<std::int32_t> list(model.listBegin(v), model.listEnd(v));
+        std::vector<std::pair<int, std::int32_t>> list;  // (entry bound, triangle id)
+        const std::uint8_t* bounds = model.listBoundsBegin(v);
+        for (const std::int32_t* t = model.listBegin(v); t != model.listEnd(v); ++t) list.push_back({*bounds++, *t});
         EXPECT_FALSE(list.empty()) << "voxel " << v << " has an empty list";
-        EXPECT_TRUE(std::adjacent_find(list.begin(), list.end(), [](int a, int b) { return a >= b; }) == list.end())
-            << "voxel " << v << " list is not strictly increasing";
-        for (std::int32_t t : list) {
+        EXPECT_TRUE(std::adjacent_find(list.begin(), list.end(), [](auto a, auto b) { return a >= b; }) == list.end())
+            << "voxel " << v << " list is not strictly increasing in (entry bound, id)";
+        std::set<std::int32_t> ids;
+        for (const auto& [bound, t] : list) {
           EXPECT_GE(t, 0);
           EXPECT_LT(t, triangles);
+          EXPECT_TRUE(ids.insert(t).second) << "voxel " << v << " lists triangle " << t << " twice";
         }
         total += static_cast<std::int64_t>(list.size());
         longest = std::max<std::int64_t>(longest, static_cast<std::int64_t>(list.size()));

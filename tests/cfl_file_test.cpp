@@ -65,6 +65,7 @@ void expectSameModel(const CflModel& a, const CflModel& b) {
   EXPECT_EQ(a.voxel_list, b.voxel_list);
   EXPECT_EQ(a.list_offsets, b.list_offsets);
   EXPECT_EQ(a.list_triangles, b.list_triangles);
+  EXPECT_EQ(a.list_entry_bounds, b.list_entry_bounds);
   EXPECT_EQ(0, std::memcmp(a.voxel_lower_bound.data(), b.voxel_lower_bound.data(), 8 * a.voxel_lower_bound.size()));
   EXPECT_EQ(a.voxel_lower_bound.size(), b.voxel_lower_bound.size());
   EXPECT_EQ(0, std::memcmp(a.corner_distance.data(), b.corner_distance.data(), 8 * a.corner_distance.size()));
@@ -533,6 +534,71 @@ TEST_F(CflFileStructure, MissingDuplicateAndUnknownSectionsAreHandled) {
   putU64(bytes, 16, bytes.size() - 32);
   detail::resealCflBuffer(bytes.data(), bytes.size());
   expectSameModel(smallModel(), deserializeCflModel(bytes.data(), bytes.size(), kName));
+}
+
+// A version-1 file: the same sections without LBND, lists sorted by id. Made from `model` after clearing its
+// entry bounds (which keeps it valid once its lists are sorted by id).
+Bytes versionOneBytes(CflModel& model) {
+  for (std::size_t l = 0; l + 1 < model.list_offsets.size(); ++l) {
+    std::sort(model.list_triangles.begin() + model.list_offsets[l], model.list_triangles.begin() + model.list_offsets[l + 1]);
+  }
+  std::fill(model.list_entry_bounds.begin(), model.list_entry_bounds.end(), 0);
+  Bytes bytes = serializeCflModel(model);
+  const std::size_t body = sectionBody(bytes, "LBND");
+  const std::size_t length = 16 + getU64(bytes, body - 8);
+  bytes.erase(bytes.begin() + static_cast<std::ptrdiff_t>(body - 16), bytes.begin() + static_cast<std::ptrdiff_t>(body - 16 + length));
+  putU32(bytes, 12, 1);
+  putU64(bytes, 16, bytes.size() - 32);
+  detail::resealCflBuffer(bytes.data(), bytes.size());
+  return bytes;
+}
+
+TEST(CflFile, VersionOneFilesLoadWithZeroEntryBoundsAndAnswerExactly) {
+  CflModel model = build(test::makeTorusKnot(), 7);
+  CflModel expected = model;
+  const Bytes bytes = versionOneBytes(expected);
+  const CflModel loaded = deserializeCflModel(bytes.data(), bytes.size(), kName);
+  expectSameModel(expected, loaded);
+  for (std::uint8_t bound : loaded.list_entry_bounds) ASSERT_EQ(bound, 0);
+  // Bounds of 0 only make the query scan whole lists: the answers stay exact.
+  test::Rng rng(11);
+  const double diagonal = model.geometry.bounds.diagonal();
+  for (int i = 0; i < 20; ++i) {
+    const Eigen::Isometry3d X_WB = test::randomPose(rng, (0.2 + 0.1 * (i % 5)) * diagonal);
+    const double truth = bruteForceDistance(model.geometry, Eigen::Isometry3d::Identity(), model.geometry, X_WB).distance;
+    EXPECT_NEAR(computeDistance(loaded, Eigen::Isometry3d::Identity(), model.geometry, X_WB).distance, truth, 1e-9 * diagonal);
+    EXPECT_NEAR(computeDistance(model, Eigen::Isometry3d::Identity(), model.geometry, X_WB).distance, truth, 1e-9 * diagonal);
+  }
+}
+
+TEST(CflFile, EntryBoundsSectionIsRequiredAndChecked) {
+  CflModel model = smallModel();
+  // A version-2 file without LBND.
+  Bytes bytes = versionOneBytes(model);
+  putU32(bytes, 12, 2);
+  detail::resealCflBuffer(bytes.data(), bytes.size());
+  expectRefused(bytes, "required section LBND is missing");
+  // Bounds out of order inside a list: find a list of two entries or more and raise the first bound.
+  const Bytes good = serializeCflModel(smallModel());
+  const std::size_t body = sectionBody(good, "LBND");
+  std::size_t two = smallModel().list_offsets.size();
+  for (std::size_t l = 0; l + 1 < smallModel().list_offsets.size(); ++l) {
+    if (smallModel().list_offsets[l + 1] - smallModel().list_offsets[l] >= 2) {
+      two = l;
+      break;
+    }
+  }
+  ASSERT_LT(two + 1, smallModel().list_offsets.size());
+  Bytes unsorted = good;
+  const std::size_t entry = body + 8 + smallModel().list_offsets[two];
+  unsorted[entry] = static_cast<unsigned char>(std::max<int>(unsorted[entry + 1], 1) + 1);
+  detail::resealCflBuffer(unsorted.data(), unsorted.size());
+  expectRefused(unsorted, "not sorted by (entry bound, id)");
+  // A count that does not match the lists.
+  Bytes short_count = good;
+  putU64(short_count, body, getU64(good, body) - 1);
+  detail::resealCflBuffer(short_count.data(), short_count.size());
+  expectRefused(short_count, "LBND");
 }
 
 TEST(CflFile, SavingAModelThatBreaksAnInvariantIsRefused) {

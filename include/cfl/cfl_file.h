@@ -31,10 +31,11 @@
 
 namespace cfl {
 
-/// The version written by this library, and the only one it reads.
-constexpr std::uint32_t kCflFileVersion = 1;
+/// The version written by this library. It also reads version 1 files (lists without entry bounds,
+/// loaded with every bound 0: correct, only slower to query).
+constexpr std::uint32_t kCflFileVersion = 2;
 
-/// The model as the bytes of a version-1 file. O(model size); thread-safe (reads `model` only).
+/// The model as the bytes of a version-2 file. O(model size); thread-safe (reads `model` only).
 /// Throws cfl::Error when the model breaks an invariant of CflModel (the loader would refuse the result),
 /// e.g. a list holding a triangle id out of range.
 std::vector<unsigned char> serializeCflModel(const CflModel& model);
@@ -42,7 +43,7 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model);
 /// Parses the bytes of a file written by serializeCflModel. Everything is checked before it is used: size,
 /// magic, endianness marker, version, both checksums, every count against the bytes that remain (so a
 /// corrupt count never causes a large allocation), every triangle and list id against its range, offsets
-/// increasing, list contents sorted, array sizes against the grid dims, every double finite (and distances
+/// increasing, list contents sorted by (entry bound, id), array sizes against the grid dims, every double finite (and distances
 /// non-negative), the grid against the mesh's bounds, padding and resolution. Any failure throws cfl::Error
 /// whose message starts with `name_for_errors` (usually the file path) and says what is wrong, e.g.
 /// "robot.cfl: checksum mismatch (payload CRC-32 is 0x1c291ca3, header says 0x5d0f4e12): the file is corrupt".
@@ -58,7 +59,7 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
 void saveCflModel(const CflModel& model, const std::string& path);
 
 /// Reads a model saved by saveCflModel. Throws cfl::Error naming `path` when the file cannot be read or is
-/// not a valid version-1 CFL file (see deserializeCflModel for what is checked).
+/// not a valid CFL file of version 1 or 2 (see deserializeCflModel for what is checked).
 CflModel loadCflModel(const std::string& path);
 
 namespace detail {

@@ -56,10 +56,16 @@ struct CflModel {
 
   /// CSR storage of the lists: voxel v's CFL is
   /// list_triangles[list_offsets[voxel_list[v]], list_offsets[voxel_list[v] + 1]).
-  /// Triangle ids are indices into geometry.mesh.triangles, sorted increasingly within a list.
+  /// Triangle ids are indices into geometry.mesh.triangles. Within a list, entries are sorted by
+  /// (list_entry_bounds, id), both increasing, so a query scans the nearest triangles first and stops at the
+  /// first entry whose bound reaches its best distance.
   std::vector<std::uint32_t> voxel_list;
   std::vector<std::uint32_t> list_offsets;
   std::vector<std::int32_t> list_triangles;
+  /// Parallel to list_triangles: a lower bound on the distance between the entry's triangle and the
+  /// voxels that use the list, in units of entryBoundUnit(), rounded down and saturated at 255. One byte
+  /// per entry; lists are shared only between voxels whose ids and bounds both agree.
+  std::vector<std::uint8_t> list_entry_bounds;
 
   /// Per voxel, a lower bound on the distance from any point of the voxel to the mesh (0 where the mesh
   /// passes through the voxel).
@@ -73,6 +79,10 @@ struct CflModel {
   /// The CFL of voxel v as a [begin, end) range of triangle ids.
   const std::int32_t* listBegin(std::int64_t v) const { return list_triangles.data() + list_offsets[voxel_list[v]]; }
   const std::int32_t* listEnd(std::int64_t v) const { return list_triangles.data() + list_offsets[voxel_list[v] + 1]; }
+  /// The unit of list_entry_bounds: 1/32 of a voxel edge, so bounds up to about 8 voxel edges are kept.
+  double entryBoundUnit() const { return grid.voxel_size / 32; }
+  /// The entry bounds of voxel v's CFL, parallel to [listBegin(v), listEnd(v)).
+  const std::uint8_t* listBoundsBegin(std::int64_t v) const { return list_entry_bounds.data() + list_offsets[voxel_list[v]]; }
 };
 
 /// The resolution used when BuildOptions::resolution is 0: about two mean triangle edge lengths per voxel

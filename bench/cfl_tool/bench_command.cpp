@@ -2,6 +2,7 @@
 
 #include "cfl/cfl_query.h"
 #include "cfl/error.h"
+#include "bench_sections.h"
 #include "commands.h"
 #include "fcl_baseline.h"
 #include "measure.h"
@@ -26,6 +27,7 @@ namespace {
 
 constexpr const char* kBenchUsage = R"(usage: cfl bench [A [B]] [--queries N] [--bands LIST] [--resolution N] [--seed S]
                  [--repeats R] [--clock wall|cpu] [--threads T] [--json OUT.json] [--plot OUT.png]
+                 [--moving FRAMES [--separation F]] [--rel-err E] [--abs-err A] [--no-table]
 
 Times exact mesh-mesh distance queries of CFL (A's voxels, B as a plain mesh with its Bvh) against FCL 0.7
 fcl::distance on BVHModel<OBBRSS> and BVHModel<RSS> (enable_nearest_points = true), in one process, on the
@@ -56,6 +58,20 @@ Columns, per band:
   --threads T      CFL build threads (default: all)
   --json OUT       also write every figure as JSON
   --plot OUT.png   also draw median time per band and method on a log axis (needs gnuplot)
+
+Extra sections, printed after the table only when asked for:
+  --moving FRAMES  moving objects: B orbits A once and turns twice over FRAMES frames, resting at a gap of
+                   --separation (fraction of A's diagonal, default 0.01; set by sphere tracing on OBBRSS
+                   distances). Times per frame: CFL cold (no hint), CFL warm (hint_triangle_a/b = the previous
+                   frame's warm answer, the first frame cold) and OBBRSS. Every CFL answer is checked
+                   against OBBRSS (1e-9 of the diagonal). Reports medians, p90, N_p and the speedups.
+  --rel-err E      approximate queries: on each band's poses, CFL with DistanceOptions::rel_err = E and
+  --abs-err A      abs_err = A (mesh units; default 0) next to exact CFL and OBBRSS. Pruning follows FCL's
+                   rule, which needs BOTH conditions (lb >= best - A and lb * (1 + E) >= best): with A = 0,
+                   rel_err alone buys nothing; pass a large A (e.g. the diagonal) to see rel_err's effect
+                   alone. Checks true <= d <= min(true * (1 + E), true + A) (+ 1e-9 of the diagonal) with
+                   true = OBBRSS's exact distance; FCL 0.7 ignores both for mesh-mesh distance.
+  --no-table       skip the per-band table (with --moving or --rel-err, to run only those)
 )";
 
 struct BandReport {
@@ -153,7 +169,8 @@ void writePlot(const std::string& png, const std::vector<BandReport>& bands, con
 
 int runBench(const std::vector<std::string>& raw, Streams io) {
   const ParsedArgs args = parseArgs(
-      raw, {{"queries"}, {"bands"}, {"resolution"}, {"seed"}, {"repeats"}, {"clock"}, {"threads"}, {"json"}, {"plot"}});
+      raw, {{"queries"}, {"bands"}, {"resolution"}, {"seed"}, {"repeats"}, {"clock"}, {"threads"}, {"json"}, {"plot"},
+            {"moving"}, {"separation"}, {"rel-err"}, {"abs-err"}, {"no-table", false}});
   if (args.has("help")) {
     io.out << kBenchUsage;
     return 0;
@@ -170,8 +187,18 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
   BuildOptions options;
   options.resolution = int(parseInteger(args.get("resolution").value_or("0"), "--resolution", 0, 4096));
   options.threads = int(parseInteger(args.get("threads").value_or("0"), "--threads", 0, 1024));
+  const int moving_frames = int(parseInteger(args.get("moving").value_or("0"), "--moving", 0, 10000000));
+  if (args.has("separation") && moving_frames == 0) throw UsageError("--separation needs --moving FRAMES");
+  const double separation = parseReal(args.get("separation").value_or("0.01"), "--separation", 1e-9, 10);
+  const bool approximate = args.has("rel-err") || args.has("abs-err");
+  DistanceOptions approximate_options;
+  approximate_options.rel_err = parseReal(args.get("rel-err").value_or("0"), "--rel-err", 0, 1e9);
+  approximate_options.abs_err = parseReal(args.get("abs-err").value_or("0"), "--abs-err", 0, 1e300);
+  const bool table = !args.has("no-table");
+  if (!table && moving_frames == 0 && !approximate) throw UsageError("--no-table leaves nothing to run without --moving or --rel-err/--abs-err");
   const auto json_path = args.get("json");
   const auto plot_path = args.get("plot");
+  if ((json_path || plot_path) && !table) throw UsageError("--json and --plot describe the table; drop --no-table");
   if (plot_path && findExecutable("gnuplot").empty()) {
     throw Error("--plot needs gnuplot, which is not in PATH (Debian: apt-get install gnuplot-nox)");
   }
@@ -200,10 +227,12 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
   io.out << format("queries: %d poses per band, seed %llu, each timed %d times per method (interleaved), "
                    "%s microseconds per query\n\n",
                    queries, static_cast<unsigned long long>(seed), repeats, clock == Clock::kWall ? "wall" : "thread CPU");
-  io.out << format("%-7s %9s | %8s %8s | %8s %8s | %8s %8s | %10s | %8s %8s | %8s %8s | %11s\n", "band",
-                   "dist/diag", "CFL med", "p90", "OBBRSS", "p90", "RSS", "p90", "OBBRSS/CFL", "CFL N_p", "N_v",
-                   "FCL N_p", "N_v", "max|d|/diag");
-  io.out.flush();
+  if (table) {
+    io.out << format("%-7s %9s | %8s %8s | %8s %8s | %8s %8s | %10s | %8s %8s | %8s %8s | %11s\n", "band",
+                     "dist/diag", "CFL med", "p90", "OBBRSS", "p90", "RSS", "p90", "OBBRSS/CFL", "CFL N_p", "N_v",
+                     "FCL N_p", "N_v", "max|d|/diag");
+    io.out.flush();
+  }
 
   const bench::DistanceFunction baseline = [&](const Eigen::Isometry3d& X_WB) {
     return bench::fclDistance(obbrss_a, I, obbrss_b, X_WB).distance;
@@ -215,10 +244,13 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
   };
 
   std::vector<BandReport> reports;
+  std::vector<bench::BandPoses> band_poses;  // kept for the --rel-err section
   bool passed = true;
   for (double band : bands) {
-    const bench::BandPoses poses =
-        bench::generateBandPoses(cfl_a.geometry.bounds, model_b.bounds, band, queries, seed, baseline);
+    if (!table && !approximate) break;
+    band_poses.push_back(bench::generateBandPoses(cfl_a.geometry.bounds, model_b.bounds, band, queries, seed, baseline));
+    const bench::BandPoses& poses = band_poses.back();
+    if (!table) continue;
     const std::vector<MethodSamples> samples = timeMethods(poses.poses, methods, repeats, clock);
     BandReport r;
     r.band = band;
@@ -254,6 +286,12 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
     io.out.flush();
     reports.push_back(r);
   }
+
+  const SectionContext context{cfl_a, model_b, obbrss_a, obbrss_b, diagonal, repeats, clock};
+  if (moving_frames > 0) {
+    passed = runMovingSection(context, moving_frames, separation, seed, io.out) && passed;
+  }
+  if (approximate) passed = runApproximateSection(context, band_poses, approximate_options, io.out) && passed;
 
   if (json_path) {
     std::ofstream json(*json_path);
@@ -294,8 +332,8 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
     io.out << (json_path ? "" : "\n") << "wrote " << *plot_path << '\n';
   }
   if (!passed) {
-    io.err << format("cfl bench: FAILED: CFL and FCL OBBRSS distances differ by more than 1e-9 of the diagonal (%g); "
-                     "see the rows marked MISMATCH\n",
+    io.err << format("cfl bench: FAILED: a CFL distance differs from FCL OBBRSS's by more than 1e-9 of the diagonal "
+                     "(%g), or breaks the rel_err/abs_err bound; see the rows marked MISMATCH\n",
                      diagonal);
     return 1;
   }

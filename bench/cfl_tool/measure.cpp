@@ -22,24 +22,24 @@ double nowMicros(Clock clock) {
 
 }  // namespace
 
-std::vector<MethodSamples> timeMethods(const std::vector<Eigen::Isometry3d>& poses,
-                                       const std::vector<TimedMethod>& methods, int repeats, Clock clock) {
+std::vector<MethodSamples> timeIndexedMethods(std::size_t count, const std::vector<IndexedMethod>& methods,
+                                              int repeats, Clock clock) {
   const std::size_t m = methods.size();
   std::vector<MethodSamples> out(m);
-  if (poses.empty() || m == 0) return out;
+  if (count == 0 || m == 0) return out;
   repeats = std::max(repeats, 1);
   for (const auto& method : methods) {
-    method.query(poses.front());
-    method.query(poses.back());
+    method.query(0);
+    method.query(count - 1);
   }
   std::vector<std::vector<double>> times(m);
-  for (std::size_t i = 0; i < poses.size(); ++i) {
+  for (std::size_t i = 0; i < count; ++i) {
     for (auto& t : times) t.clear();
     for (int r = 0; r < repeats; ++r) {
       for (std::size_t k = 0; k < m; ++k) {
         const std::size_t j = (i + std::size_t(r) + k) % m;
         const double start = nowMicros(clock);
-        const double d = methods[j].query(poses[i]);
+        const double d = methods[j].query(i);
         times[j].push_back(nowMicros(clock) - start);
         if (r == 0) out[j].distances.push_back(d);
       }
@@ -47,6 +47,16 @@ std::vector<MethodSamples> timeMethods(const std::vector<Eigen::Isometry3d>& pos
     for (std::size_t j = 0; j < m; ++j) out[j].micros.push_back(bench::median(times[j]));
   }
   return out;
+}
+
+std::vector<MethodSamples> timeMethods(const std::vector<Eigen::Isometry3d>& poses,
+                                       const std::vector<TimedMethod>& methods, int repeats, Clock clock) {
+  std::vector<IndexedMethod> indexed;
+  indexed.reserve(methods.size());
+  for (const auto& method : methods) {
+    indexed.push_back({method.name, [&poses, &method](std::size_t i) { return method.query(poses[i]); }});
+  }
+  return timeIndexedMethods(poses.size(), indexed, repeats, clock);
 }
 
 double mean(const std::vector<double>& values) {

@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 
+#include <cstddef>
 #include <functional>
 #include <string>
 #include <vector>
@@ -34,6 +35,17 @@ enum class Clock { kWall, kThreadCpu };
 std::vector<MethodSamples> timeMethods(const std::vector<Eigen::Isometry3d>& poses,
                                        const std::vector<TimedMethod>& methods, int repeats,
                                        Clock clock = Clock::kWall);
+
+/// A method whose query depends on the pose's position in a sequence (a warm start from the previous
+/// frame's answer): `query(i)` answers pose i.
+struct IndexedMethod {
+  std::string name;
+  std::function<double(std::size_t i)> query;
+};
+
+/// timeMethods for `count` indexed poses, with the same interleaving, rotation, warm-up and statistics.
+std::vector<MethodSamples> timeIndexedMethods(std::size_t count, const std::vector<IndexedMethod>& methods,
+                                              int repeats, Clock clock = Clock::kWall);
 
 /// Mean of `values`; 0 when empty.
 double mean(const std::vector<double>& values);

@@ -132,6 +132,75 @@ BandPoses generateBandPoses(const Aabb& bounds_a, const Aabb& bounds_b, double b
   return out;
 }
 
+MovingPoses generateMovingPoses(const Aabb& bounds_a, const Aabb& bounds_b, double separation, int frames,
+                                std::uint64_t seed, const DistanceFunction& distance) {
+  if (!std::isfinite(separation) || separation <= 0) {
+    throw Error("moving poses: separation " + std::to_string(separation) + " must be finite and > 0");
+  }
+  if (frames < 1) throw Error("moving poses: frame count " + std::to_string(frames) + " must be >= 1");
+  if (bounds_a.empty() || bounds_b.empty()) throw Error("moving poses: a mesh has empty bounds");
+  const double diagonal = bounds_a.diagonal();
+  const double reach = 0.5 * (diagonal + bounds_b.diagonal());
+  const Eigen::Vector3d center_a = bounds_a.center();
+  const Eigen::Vector3d center_b = bounds_b.center();
+  std::mt19937_64 rng(splitMix64(seed ^ 0x6d6f76696e67ull));  // "moving": its own stream, not a band's
+
+  // The orbit's plane (e1, e2) and its normal e3; the rolling axis; B's starting attitude.
+  const Eigen::Vector3d e3 = randomDirection(rng);
+  const Eigen::Vector3d e1 = e3.unitOrthogonal();
+  const Eigen::Vector3d e2 = e3.cross(e1);
+  const Eigen::Vector3d roll_axis = randomDirection(rng);
+  const Eigen::Matrix3d R0 = randomRotation(rng);
+  const double kPi = 3.14159265358979323846;
+  const double kTurns = 2;
+
+  MovingPoses out;
+  out.separation = separation;
+  out.target_distance = separation * diagonal;
+  out.rotation_step = 2 * kPi * kTurns / frames;
+  const double target = out.target_distance;
+  std::vector<double> steps;
+  Eigen::Vector3d previous_center = Eigen::Vector3d::Zero();
+  for (int k = 0; k < frames; ++k) {
+    const double t = double(k) / frames;
+    const double angle = 2 * kPi * t;
+    const Eigen::Vector3d u =
+        (std::cos(angle) * e1 + std::sin(angle) * e2 + 0.3 * std::sin(3 * angle) * e3).normalized();
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(2 * kPi * kTurns * t, roll_axis).toRotationMatrix() * R0;
+    auto poseAt = [&](double s) {
+      Eigen::Isometry3d X_WB = Eigen::Isometry3d::Identity();
+      X_WB.linear() = R;
+      X_WB.translation() = center_a + s * u - R * center_b;
+      return X_WB;
+    };
+    // From beyond the bounding spheres' contact inward; every step keeps distance >= target.
+    double s = reach + 2 * target;
+    double d = distance(poseAt(s));
+    bool found = false;
+    for (int i = 0; i < 10000 && s > 0; ++i) {
+      if (std::abs(d - target) <= 1e-3 * target) {
+        found = true;
+        break;
+      }
+      s -= std::max(d - target, 1e-4 * target);
+      d = distance(poseAt(s));
+      if (d < target - 1e-3 * target) break;  // rounding let it step past; the previous step was close
+    }
+    if (!found) {
+      throw Error("moving poses: frame " + std::to_string(k) + " could not reach distance " + std::to_string(target));
+    }
+    const Eigen::Isometry3d X_WB = poseAt(s);
+    const Eigen::Vector3d center = X_WB * center_b;
+    if (k > 0) steps.push_back((center - previous_center).norm());
+    previous_center = center;
+    out.poses.push_back(X_WB);
+    out.distances.push_back(d);
+  }
+  out.median_step = median(steps);
+  out.max_step = steps.empty() ? 0 : *std::max_element(steps.begin(), steps.end());
+  return out;
+}
+
 double percentile(std::vector<double> values, double fraction) {
   if (values.empty()) return 0;
   const std::size_t n = values.size();

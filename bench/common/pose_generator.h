@@ -46,6 +46,29 @@ constexpr double kBandTolerance = 0.01;
 BandPoses generateBandPoses(const Aabb& bounds_a, const Aabb& bounds_b, double band, int count,
                             std::uint64_t seed, const DistanceFunction& distance);
 
+/// A smooth motion of B close to A, the paper's use case (a dynamics simulator queries the same pair every
+/// step).
+struct MovingPoses {
+  double separation = 0;                 ///< Fraction of A's bounding-box diagonal.
+  double target_distance = 0;            ///< separation * diagonal.
+  std::vector<Eigen::Isometry3d> poses;  ///< X_WB per frame, A being at the identity.
+  std::vector<double> distances;         ///< The distance function's value at each frame.
+  double median_step = 0;                ///< Median translation of B's box center between frames.
+  double max_step = 0;                   ///< Largest such translation (a jump where the outermost feature changes).
+  double rotation_step = 0;              ///< Rotation of B between frames, radians (constant).
+};
+
+/// `frames` poses of B orbiting A while rolling. Frame k has t = k / frames in [0, 1): B's direction from A's
+/// box center sweeps one full turn around a random axis (with a small wobble across it), and B turns twice
+/// about another random axis, both smooth in t. Along the direction B comes in from far away until the
+/// distance drops to within 0.1% of separation * diagonal(A): sphere tracing (steps of distance - target,
+/// which cannot overshoot a 1-Lipschitz function), so B rests on the outermost part of A it meets, as an
+/// object sliding over A would. Deterministic for a given seed. Throws cfl::Error for separation <= 0, or a
+/// frame where the target cannot be reached (the meshes overlap at the centers' coincidence and no offset
+/// reaches the target, which a separation > 0 rules out for bounded meshes).
+MovingPoses generateMovingPoses(const Aabb& bounds_a, const Aabb& bounds_b, double separation, int frames,
+                                std::uint64_t seed, const DistanceFunction& distance);
+
 /// The median and 90th percentile (nearest rank) of `values`; 0 for an empty vector.
 double median(std::vector<double> values);
 double percentile(std::vector<double> values, double fraction);

@@ -1,7 +1,10 @@
 #include "cfl/bvh.h"
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 namespace cfl {
@@ -44,11 +47,50 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
         radius_squared = std::max(radius_squared, (mesh.vertices[index] - center).squaredNorm());
       }
     }
+    // The oriented box: principal axes of the vertices (duplicates counted, which is harmless: any
+    // orthonormal axes give a true box, these just tend to give a tight one).
+    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+    for (int i = range.begin; i < range.end; ++i) {
+      for (int index : mesh.triangles[bvh.triangle_ids[i]]) {
+        const Eigen::Vector3d offset = mesh.vertices[index] - center;
+        scatter += offset * offset.transpose();
+      }
+    }
+    Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
+    if (scatter.allFinite()) {
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
+      // Re-orthonormalized so that the box stays a true bound whatever the solver's rounding.
+      if (solver.info() == Eigen::Success && solver.eigenvectors().allFinite()) {
+        const Eigen::Vector3d first = solver.eigenvectors().col(0).normalized();
+        Eigen::Vector3d second = solver.eigenvectors().col(1) - first * first.dot(solver.eigenvectors().col(1));
+        if (first.allFinite() && second.norm() > 0.5) {
+          second.normalize();
+          axes.col(0) = first;
+          axes.col(1) = second;
+          axes.col(2) = first.cross(second);
+        }
+      }
+    }
+    Eigen::Vector3d low = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), high = -low;
+    for (int i = range.begin; i < range.end; ++i) {
+      for (int index : mesh.triangles[bvh.triangle_ids[i]]) {
+        const Eigen::Vector3d projection = axes.transpose() * mesh.vertices[index];
+        low = low.cwiseMin(projection);
+        high = high.cwiseMax(projection);
+      }
+    }
     {
       BvhNode& node = bvh.nodes[range.node];
       node.box = box;
       node.center = center;
       node.radius = std::sqrt(radius_squared);
+      node.obb_axes = axes;
+      // Half extents grown by a hair of the node's scale and position, so that rounding in the query's
+      // projections (of coordinates that large) never makes the box miss a vertex, flat patches included.
+      const Eigen::Vector3d middle = 0.5 * (low + high);
+      node.obb_center = axes * middle;
+      const double slack = 1e-12 * (center.norm() + node.radius) + 1e-300;
+      node.obb_half = (0.5 * (high - low)).array() + slack;
     }
     const int count = range.end - range.begin;
     if (count <= max_leaf_size) {

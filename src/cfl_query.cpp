@@ -168,8 +168,33 @@ class Search {
     }
   }
 
+  // Whether triangle a of A may be closer to `tb` than `threshold`: the tests of pairLowerBound, cheapest
+  // first, each returning as soon as it decides.
+  bool mayBeCloser(int a, const PreparedTriangle& tb, double threshold) const {
+    const Eigen::Vector4d& sphere = mesh_a_.spheres[a];
+    const Eigen::Vector3d axis = tb.center - sphere.head<3>();
+    const double reach = threshold + sphere[3] + tb.radius;
+    const double axis_squared = axis.squaredNorm();
+    if (axis_squared >= reach * reach) return false;
+    const auto& c = mesh_a_.corners[a];
+    const Eigen::Vector4d& plane = mesh_a_.planes[a];
+    const Eigen::Vector3d normal_a = plane.head<3>();
+    const double s0 = normal_a.dot(tb.corners[0]) - plane[3], s1 = normal_a.dot(tb.corners[1]) - plane[3],
+                 s2 = normal_a.dot(tb.corners[2]) - plane[3];
+    if (std::max(std::min({s0, s1, s2}), -std::max({s0, s1, s2})) >= threshold) return false;
+    const double t0 = tb.normal.dot(c[0]) - tb.offset, t1 = tb.normal.dot(c[1]) - tb.offset,
+                 t2 = tb.normal.dot(c[2]) - tb.offset;
+    if (std::max(std::min({t0, t1, t2}), -std::max({t0, t1, t2})) >= threshold) return false;
+    if (axis_squared > 0) {
+      const double a_max = std::max({axis.dot(c[0]), axis.dot(c[1]), axis.dot(c[2])});
+      const double b_min = std::min({axis.dot(tb.corners[0]), axis.dot(tb.corners[1]), axis.dot(tb.corners[2])});
+      if (b_min - a_max >= threshold * std::sqrt(axis_squared)) return false;
+    }
+    return true;
+  }
+
   void testPairIfClose(int a, const PreparedTriangle& tb) {
-    if (pairLowerBound(a, tb) >= pruneThreshold()) return;
+    if (!mayBeCloser(a, tb, pruneThreshold())) return;
     testPair(a, tb);
   }
 
@@ -263,23 +288,34 @@ class Search {
   }
 
   // Lower bound between node a of A's Bvh and node b of B's, whose sphere center is `center` in A's frame:
-  // the larger of the sphere-box gap and the gap between the two boxes (A's axis-aligned, B's rotated)
-  // projected on the axis joining their centers, the one separating axis that matters when far apart.
+  // the larger of the sphere-box gap and the separation of the two oriented boxes along the seven axes that
+  // matter for distance (each box's three axes and the line joining their centers). The oriented boxes
+  // are thin across flat patches, where facing surfaces are separated along their normals.
   double nodePairLowerBound(int a, int b, const Eigen::Vector3d& center) const {
     const BvhNode& node_a = mesh_a_.bvh.nodes[a];
     const BvhNode& node_b = b_.bvh.nodes[b];
-    const double sphere_gap =
+    double bound =
         std::max(std::sqrt(detail::pointBoxSquaredDistance(center, node_a.box)), (center - node_a.center).norm() - node_a.radius) -
         node_b.radius;
-    const Eigen::Vector3d center_a = node_a.box.center();
-    const Eigen::Vector3d center_b = X_AB_.apply(node_b.box.center());
-    const Eigen::Vector3d axis = center_b - center_a;
-    const double length = axis.norm();
-    if (!(length > 0)) return sphere_gap;
-    const Eigen::Vector3d axis_in_b = X_AB_.rotation.transpose() * axis;
-    const double support_a = 0.5 * node_a.box.size().dot(axis.cwiseAbs());
-    const double support_b = 0.5 * node_b.box.size().dot(axis_in_b.cwiseAbs());
-    return std::max(sphere_gap, (length * length - support_a - support_b) / length);
+    // Everything in A's box frame: B's axes as columns, the offset between the centers, and the absolute
+    // cosines between the two sets of axes.
+    const Eigen::Matrix3d axes_b = node_a.obb_axes.transpose() * (X_AB_.rotation * node_b.obb_axes);
+    const Eigen::Vector3d offset = node_a.obb_axes.transpose() * (X_AB_.apply(node_b.obb_center) - node_a.obb_center);
+    const Eigen::Matrix3d cosines = axes_b.cwiseAbs();
+    const Eigen::Vector3d& half_a = node_a.obb_half;
+    const Eigen::Vector3d& half_b = node_b.obb_half;
+    // A's axes: the box of A reaches half_a[i], B's box reaches sum_j cosines(i, j) half_b[j].
+    const Eigen::Vector3d gap_a = offset.cwiseAbs() - half_a - cosines * half_b;
+    // B's axes.
+    const Eigen::Vector3d gap_b = (axes_b.transpose() * offset).cwiseAbs() - half_b - cosines.transpose() * half_a;
+    bound = std::max({bound, gap_a.maxCoeff(), gap_b.maxCoeff()});
+    const double length = offset.norm();
+    if (length > 0) {
+      const double reach_a = half_a.dot(offset.cwiseAbs());
+      const double reach_b = half_b.dot((axes_b.transpose() * offset).cwiseAbs());
+      bound = std::max(bound, (length * length - reach_a - reach_b) / length);
+    }
+    return bound;
   }
 
   // Default mode: best-first over B's Bvh. A node of B is bounded against A's distance field in O(1); once

@@ -127,8 +127,14 @@ void checkInvariants(const TriangleMesh& mesh, const Bvh& bvh, int max_leaf_size
         EXPECT_TRUE(boxContains(node.box, v)) << "node " << *it << " box misses triangle " << t;
         EXPECT_TRUE(sphereContains(node, v)) << "node " << *it << " sphere misses triangle " << t << " by "
                                              << (v - node.center).norm() - node.radius;
+        const Eigen::Vector3d local = node.obb_axes.transpose() * (v - node.obb_center);
+        EXPECT_TRUE((local.cwiseAbs().array() <= node.obb_half.array()).all())
+            << "node " << *it << " oriented box misses triangle " << t << ": " << local.transpose() << " vs "
+            << node.obb_half.transpose();
       }
     }
+    // The query's separating-axis bounds assume orthonormal axes.
+    EXPECT_TRUE((node.obb_axes.transpose() * node.obb_axes).isIdentity(1e-12)) << "node " << *it;
   }
   EXPECT_EQ(static_cast<int>(below[0].size()), n);
 }

@@ -15,6 +15,13 @@ struct BvhNode {
   Aabb box;                 ///< Bounds of every triangle below, mesh frame.
   Eigen::Vector3d center;   ///< Center of a sphere bounding every triangle below (not the box's circumsphere).
   double radius = 0;        ///< Radius of that sphere.
+  /// An oriented box bounding every triangle below: its points p satisfy |obb_axes.col(i) . (p - obb_center)|
+  /// <= obb_half[i]. The axes are the principal axes of the node's vertices (orthonormal, least spread
+  /// first), so the box is thin across a nearly flat patch; distance queries bound node pairs with it where
+  /// axis-aligned boxes and spheres are loose.
+  Eigen::Matrix3d obb_axes = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d obb_center = Eigen::Vector3d::Zero();
+  Eigen::Vector3d obb_half = Eigen::Vector3d::Zero();
   std::int32_t first = 0;
   std::int32_t count = 0;
 

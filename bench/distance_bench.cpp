@@ -7,6 +7,10 @@
 // are the mean triangle pairs and voxel/bounding-volume tests per query (FCL's from its traversal
 // statistics). Before timing, every CFL answer is checked against OBBRSS; a mismatch above 1e-9 of the
 // diagonal marks the benchmark as failed.
+//
+// moving/CFL_cold|CFL_warm|OBBRSS: the smooth orbit of `cfl bench --moving` (CFL_BENCH_FRAMES frames, 1000,
+// at CFL_BENCH_SEPARATION of the diagonal, 0.01); iterations step through the frames in order, and CFL_warm
+// passes the previous iteration's triangle pair as hint_triangle_a/b, as a simulator would.
 
 #include "cfl/cfl_query.h"
 #include "cfl/mesh_io.h"
@@ -36,6 +40,11 @@ struct Scene {
   cfl::MeshModel model_b;
   std::unique_ptr<FclModel> obbrss_a, obbrss_b, rss_a, rss_b;
   double diagonal = 0;
+};
+
+struct Moving {
+  cfl::bench::MovingPoses motion;
+  double max_difference = 0;  // |CFL - OBBRSS| over the frames, cold and warm
 };
 
 struct Band {
@@ -74,6 +83,33 @@ void runQueries(benchmark::State& state, const Scene& scene, const Band& band, c
   state.counters["dist/diag"] = band.poses.target_distance / scene.diagonal;
 }
 
+void runMoving(benchmark::State& state, const Scene& scene, const Moving& moving, const std::string& method) {
+  if (!(moving.max_difference <= 1e-9 * scene.diagonal)) {
+    state.SkipWithError(("CFL differs from OBBRSS by " + std::to_string(moving.max_difference)).c_str());
+    return;
+  }
+  const auto& poses = moving.motion.poses;
+  std::size_t i = 0;
+  cfl::DistanceOptions hint;
+  for (auto _ : state) {
+    if (method == "OBBRSS") {
+      benchmark::DoNotOptimize(cfl::bench::fclDistance(*scene.obbrss_a, kIdentity, *scene.obbrss_b, poses[i]).distance);
+    } else {
+      const cfl::DistanceResult r = cfl::computeDistance(scene.cfl_a, kIdentity, scene.model_b, poses[i], hint);
+      benchmark::DoNotOptimize(r.distance);
+      if (method == "CFL_warm") {
+        hint.hint_triangle_a = r.triangle_a;
+        hint.hint_triangle_b = r.triangle_b;
+      }
+    }
+    if (++i == poses.size()) {
+      i = 0;
+      hint = {};  // the sequence starts over: the last frame is no neighbour of the first
+    }
+  }
+  state.counters["dist/diag"] = moving.motion.target_distance / scene.diagonal;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -82,6 +118,7 @@ int main(int argc, char** argv) {
 
   static Scene scene;
   static std::vector<Band> bands;
+  static Moving moving;
   try {
     const std::string path_a = envOr("CFL_BENCH_MESH_A", cfl::tool::findDataFile("bunny.obj"));
     const std::string path_b = envOr("CFL_BENCH_MESH_B", path_a);
@@ -121,6 +158,23 @@ int main(int argc, char** argv) {
       }
       bands.push_back(std::move(band));
     }
+    const int frames = std::max(1, std::atoi(envOr("CFL_BENCH_FRAMES", "1000").c_str()));
+    const double separation = std::atof(envOr("CFL_BENCH_SEPARATION", "0.01").c_str());
+    moving.motion = cfl::bench::generateMovingPoses(
+        scene.cfl_a.geometry.bounds, scene.model_b.bounds, separation, frames, seed, [](const Eigen::Isometry3d& X) {
+          return cfl::bench::fclDistance(*scene.obbrss_a, kIdentity, *scene.obbrss_b, X).distance;
+        });
+    cfl::DistanceOptions hint;
+    for (const auto& X : moving.motion.poses) {
+      const double f = cfl::bench::fclDistance(*scene.obbrss_a, kIdentity, *scene.obbrss_b, X).distance;
+      const cfl::DistanceResult cold = cfl::computeDistance(scene.cfl_a, kIdentity, scene.model_b, X);
+      const cfl::DistanceResult warm = cfl::computeDistance(scene.cfl_a, kIdentity, scene.model_b, X, hint);
+      hint.hint_triangle_a = warm.triangle_a;
+      hint.hint_triangle_b = warm.triangle_b;
+      for (double d : {std::abs(cold.distance - f), std::abs(warm.distance - f)}) {
+        moving.max_difference = std::isnan(d) ? INFINITY : std::max(moving.max_difference, d);
+      }
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "cfl_distance_bench: %s\n", e.what());
     return 1;
@@ -134,6 +188,11 @@ int main(int argc, char** argv) {
         runQueries(state, scene, band, method);
       })->Unit(benchmark::kMicrosecond);
     }
+  }
+  for (const char* method : {"CFL_cold", "CFL_warm", "OBBRSS"}) {
+    benchmark::RegisterBenchmark((std::string("moving/") + method).c_str(), [method](benchmark::State& state) {
+      runMoving(state, scene, moving, method);
+    })->Unit(benchmark::kMicrosecond);
   }
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();

@@ -206,7 +206,7 @@ class Search {
     const Eigen::Vector3d cell = (center - grid.origin) / grid.voxel_size;
     int index[3];
     for (int axis = 0; axis < 3; ++axis) {
-      const double rounded = std::round(cell[axis]);
+      const double rounded = std::floor(cell[axis] + 0.5);  // inline, unlike std::round
       index[axis] = static_cast<int>(std::clamp(rounded, 0.0, double(grid.dims[axis])));
     }
     const Eigen::Vector3d corner = grid.cornerPosition(index[0], index[1], index[2]);
@@ -236,12 +236,15 @@ class Search {
           const std::uint8_t* bounds = a_.listBoundsBegin(v);
           const std::ptrdiff_t length = a_.listEnd(v) - ids;
           const double unit = a_.entryBoundUnit();
+          double threshold = pruneThreshold();
           for (std::ptrdiff_t n = 0; n < length; ++n) {
-            if (bounds[n] * unit >= pruneThreshold()) break;
+            if (bounds[n] * unit >= threshold) break;
             const int t = ids[n];
             if (scratch_.stamp[t] == generation) continue;
             scratch_.stamp[t] = generation;
-            testPairIfClose(t, tb);
+            if (!mayBeCloser(t, tb, threshold)) continue;
+            testPair(t, tb);
+            threshold = pruneThreshold();
           }
         }
       }

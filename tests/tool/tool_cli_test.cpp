@@ -11,6 +11,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -278,6 +279,124 @@ TEST_F(ToolCliTest, PlotWithoutGnuplotFailsBeforeWorkingAndSaysWhy) {
   const ToolRun r = run({"bench", mesh, "--queries", "1", "--plot", path("out.png")}, "", "PATH=" + dir_);
   EXPECT_EQ(r.status, 1);
   EXPECT_TRUE(contains(r.err, "gnuplot")) << r.err;
+}
+
+// The line of `text` that starts with `prefix`, or "" when none does.
+std::string lineStartingWith(const std::string& text, const std::string& prefix) {
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind(prefix, 0) == 0) return line;
+  }
+  return "";
+}
+
+// The number right after the last `label` in `text`; NaN when the label is missing.
+double numberAfter(const std::string& text, const std::string& label) {
+  const auto at = text.rfind(label);
+  if (at == std::string::npos) return std::nan("");
+  return std::strtod(text.c_str() + at + label.size(), nullptr);
+}
+
+TEST_F(ToolCliTest, BenchMovingAloneReportsColdWarmAndObbrssOverTheRequestedFrames) {
+  const std::string mesh = writeMesh("torus.obj", roundToFloat(test::makeTorus(1.0, 0.35, 16, 8)));
+  const ToolRun r = run({"bench", mesh, "--no-table", "--moving", "20", "--queries", "2", "--repeats", "1",
+                         "--resolution", "10"});
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  // --no-table: no per-band table header, yet the header lines stay.
+  EXPECT_FALSE(contains(r.out, "CFL med")) << r.out;
+  EXPECT_TRUE(contains(r.out, "cfl bench: A = " + mesh)) << r.out;
+  const std::string section = lineStartingWith(r.out, "moving objects:");
+  ASSERT_FALSE(section.empty()) << r.out;
+  EXPECT_TRUE(contains(section, "moving objects: 20 frames")) << section;
+  // B turns twice over the orbit: 720 / 20 degrees per frame.
+  EXPECT_NEAR(numberAfter(section, "and turns "), 36.0, 1e-6) << section;
+  // Sphere tracing stops within 0.1% of the default separation, 0.01 of the diagonal.
+  EXPECT_NEAR(numberAfter(section, "(median achieved "), 0.01, 1e-3 * 0.01 + 1e-7) << section;
+  EXPECT_TRUE(contains(r.out, "the answer was that same pair on ")) << r.out;
+  EXPECT_TRUE(contains(r.out, " of 19 frames")) << r.out;  // the first frame has no hint
+  const std::string header = lineStartingWith(r.out, "method ");
+  for (const char* column : {"median", "p90", "N_p", "N_v", "max|d|/diag"}) EXPECT_TRUE(contains(header, column)) << header;
+  for (const char* method : {"CFL cold ", "CFL warm ", "OBBRSS "}) {
+    const std::string row = lineStartingWith(r.out, method);
+    EXPECT_FALSE(row.empty()) << method << "\n" << r.out;
+    EXPECT_FALSE(contains(row, "MISMATCH")) << row;
+  }
+  // Both CFL rows agree with OBBRSS to the exactness bound, as printed.
+  for (const char* method : {"CFL cold ", "CFL warm "}) {
+    const std::string row = lineStartingWith(r.out, method);
+    const double difference = std::strtod(row.substr(row.rfind('|') + 1).c_str(), nullptr);
+    EXPECT_LE(difference, 1e-9) << row;
+  }
+  EXPECT_TRUE(contains(r.out, "warm/cold speedup")) << r.out;
+}
+
+TEST_F(ToolCliTest, BenchApproximateSectionHoldsEveryBandWithinRelErr) {
+  const std::string mesh = writeMesh("torus.obj", roundToFloat(test::makeTorus(1.0, 0.35, 16, 8)));
+  const ToolRun r = run({"bench", mesh, "--no-table", "--rel-err", "0.1", "--abs-err", "1", "--queries", "2",
+                         "--bands", "0,0.02,0.3", "--repeats", "1", "--resolution", "10"});
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  EXPECT_FALSE(contains(r.out, "CFL med")) << r.out;
+  const std::string section = lineStartingWith(r.out, "approximate queries:");
+  ASSERT_FALSE(section.empty()) << r.out;
+  EXPECT_TRUE(contains(section, "rel_err 0.1, abs_err 1 ")) << section;
+  const std::string header = lineStartingWith(r.out, "band ");
+  for (const char* column : {"exact", "approx", "exact/approx", "OBBRSS/approx", "N_p ex", "N_p ap", "max(d/true-1)"}) {
+    EXPECT_TRUE(contains(header, column)) << header;
+  }
+  for (const char* band : {"0 ", "0.02 ", "0.3 "}) {
+    const std::string row = lineStartingWith(r.out, band);
+    ASSERT_FALSE(row.empty()) << band << "\n" << r.out;
+    EXPECT_FALSE(contains(row, "MISMATCH")) << row;
+    // The approximate distance never exceeds the true one by more than rel_err.
+    const double excess = std::strtod(row.substr(row.rfind('|') + 1).c_str(), nullptr);
+    EXPECT_GE(excess, -1e-9) << row;
+    EXPECT_LE(excess, 0.1 + 1e-9) << row;
+  }
+}
+
+TEST_F(ToolCliTest, BenchRelErrWithoutAbsErrStaysExact) {
+  // FCL's rule needs both tolerances to skip a step, so abs_err = 0 leaves the query exact.
+  const std::string mesh = writeMesh("torus.obj", roundToFloat(test::makeTorus(1.0, 0.35, 16, 8)));
+  const ToolRun r = run({"bench", mesh, "--no-table", "--rel-err", "0.5", "--queries", "3", "--bands", "0.02,0.3",
+                         "--repeats", "1", "--resolution", "10"});
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  EXPECT_TRUE(contains(r.out, "abs_err = 0 makes the query exact")) << r.out;
+  for (const char* band : {"0.02 ", "0.3 "}) {
+    const std::string row = lineStartingWith(r.out, band);
+    ASSERT_FALSE(row.empty()) << band << "\n" << r.out;
+    const double excess = std::strtod(row.substr(row.rfind('|') + 1).c_str(), nullptr);
+    EXPECT_LE(std::abs(excess), 1e-9) << row;
+  }
+}
+
+TEST_F(ToolCliTest, BenchSectionOptionsRejectBadValuesNamingOptionAndValue) {
+  const std::string mesh = writeMesh("box.obj", test::makeBox({0, 0, 0}, {1, 1, 1}));
+  const std::vector<std::pair<std::vector<std::string>, std::vector<std::string>>> cases = {
+      {{"--moving", "-1"}, {"--moving", "'-1'"}},
+      {{"--moving", "2.5"}, {"--moving", "'2.5'"}},
+      {{"--rel-err", "-0.5"}, {"--rel-err", "'-0.5'"}},
+      {{"--rel-err", "nan"}, {"--rel-err", "'nan'"}},
+      {{"--rel-err", "inf"}, {"--rel-err", "'inf'"}},
+      {{"--abs-err", "-1"}, {"--abs-err", "'-1'"}},
+      {{"--abs-err", "nan"}, {"--abs-err", "'nan'"}},
+      {{"--moving", "5", "--separation", "0"}, {"--separation", "'0'"}},
+      {{"--moving", "5", "--separation", "-0.1"}, {"--separation", "'-0.1'"}},
+      {{"--moving", "5", "--separation", "nan"}, {"--separation", "'nan'"}},
+      {{"--separation", "0.1"}, {"--separation", "--moving"}},
+      {{"--no-table"}, {"--no-table"}},
+      {{"--no-table", "--moving", "3", "--json", "x.json"}, {"--json", "--no-table"}},
+  };
+  for (const auto& [options, expected] : cases) {
+    std::vector<std::string> args = {"bench", mesh, "--queries", "1", "--resolution", "4"};
+    args.insert(args.end(), options.begin(), options.end());
+    std::string line;
+    for (const auto& a : options) line += a + " ";
+    const ToolRun r = run(args);
+    EXPECT_EQ(r.status, 2) << line << "\n" << r.err;
+    for (const std::string& part : expected) EXPECT_TRUE(contains(r.err, part)) << line << "\n" << r.err;
+    // Rejected before any work: nothing measured.
+    EXPECT_FALSE(contains(r.out, "moving objects")) << line;
+  }
 }
 
 }  // namespace

@@ -28,49 +28,70 @@ int workerCount(int requested) {
   return hardware == 0 ? 1 : static_cast<int>(hardware);
 }
 
-// Runs task(item) for item in [0, count) on `threads` workers, pulling items from a shared counter so that
-// uneven rows balance out. The calling thread only reports progress, so the callback never runs elsewhere.
+// Runs task(item, worker) for item in [0, count) on `threads` workers numbered from 0, the calling thread
+// being worker 0, pulling
+// items from a shared counter so that uneven rows balance out. Only the calling thread reports progress,
+// between its own items, so the callback never runs elsewhere; with one thread nothing is spawned.
 template <typename Task>
 void parallelFor(std::int64_t count, int threads, const std::function<void(double)>& progress, double progress_begin,
                  double progress_end, Task task) {
   std::atomic<std::int64_t> next{0};
   std::atomic<std::int64_t> done{0};
-  auto worker = [&] {
+  auto worker = [&](int worker_index) {
     for (std::int64_t item; (item = next.fetch_add(1)) < count;) {
-      task(item);
+      task(item, worker_index);
       done.fetch_add(1);
     }
   };
   std::vector<std::thread> pool;
-  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
-  if (progress) {
-    while (done.load() < count) {
+  for (int t = 1; t < threads && t < count; ++t) pool.emplace_back(worker, t);
+  auto last_report = std::chrono::steady_clock::now();
+  for (std::int64_t item; (item = next.fetch_add(1)) < count;) {
+    task(item, 0);
+    done.fetch_add(1);
+    if (progress && std::chrono::steady_clock::now() - last_report > std::chrono::milliseconds(20)) {
       progress(progress_begin + (progress_end - progress_begin) * double(done.load()) / double(count));
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      last_report = std::chrono::steady_clock::now();
     }
   }
   for (auto& thread : pool) thread.join();
   if (progress) progress(progress_end);
 }
 
-// Every triangle whose bounding box is within `radius` of p (a superset of those within radius).
-void trianglesNear(const MeshModel& model, const Eigen::Vector3d& p, double radius, std::vector<int>& out) {
-  out.clear();
-  const auto& nodes = model.bvh.nodes;
-  const double radius_squared = radius * radius;
-  int stack[128];  // see nearestTriangle for why this is enough
-  int top = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const BvhNode& node = nodes[stack[--top]];
-    if (detail::pointBoxSquaredDistance(p, node.box) > radius_squared) continue;
-    if (node.isLeaf()) {
-      for (int i = node.first; i < node.first + node.count; ++i) out.push_back(model.bvh.triangle_ids[i]);
-    } else {
-      stack[top++] = node.first;
-      stack[top++] = node.first + 1;
-    }
-  }
+// The directions from any point of a sphere to any point of a ball around p lie in a cone around the axis
+// from the sphere's center to p, of half-angle asin((ball radius + sphere radius) / axis length), provided
+// the two are disjoint. Kept as the sine and cosine of HALF that half-angle, so that the cone test below
+// needs no inverse trigonometry and adds only nonnegative terms.
+struct DirectionCone {
+  Eigen::Vector3d axis;  // unit
+  double sin_half = 0, cos_half = 1;
+};
+
+// The cone of axis `axis` (from the sphere's center to p) and length `length`, for r = ball radius + sphere
+// radius < length.
+DirectionCone makeDirectionCone(const Eigen::Vector3d& axis, double length, double r) {
+  DirectionCone cone;
+  cone.axis = axis / length;
+  const double sine = r / length;
+  const double cosine = std::sqrt((length - r) * (length + r)) / length;
+  cone.cos_half = std::sqrt(0.5 * (1 + cosine));
+  cone.sin_half = sine / (2 * cone.cos_half);
+  return cone;
+}
+
+// An upper bound on |u - v| for u in cone a and v in cone b: the chord 2 sin(theta / 2) of the largest angle
+// theta between them, the angle between the axes plus both half-angles (capped at pi). Half the axes' angle
+// comes from their difference and sum (both unit), which stays accurate for small angles where acos does
+// not. Every sine and cosine here is in [0, 1] and the result sums nonnegative products, so rounding is a
+// few ulps relative plus ulps of 1 absolute; the caller's 1 + 1e-9 factor and the 1e-12 added here cover it.
+double coneChordBound(const DirectionCone& a, const DirectionCone& b) {
+  const double sin_axes = 0.5 * (a.axis - b.axis).norm();
+  const double cos_axes = 0.5 * (a.axis + b.axis).norm();
+  const double sin_halves = a.sin_half * b.cos_half + a.cos_half * b.sin_half;  // each half below pi / 4
+  const double cos_halves = a.cos_half * b.cos_half - a.sin_half * b.sin_half;
+  const double cos_total = cos_axes * cos_halves - sin_axes * sin_halves;
+  if (!(cos_total > 0)) return 2.0;  // theta / 2 reaches pi / 2: any two unit vectors
+  return std::min(2.0, 2 * (sin_axes * cos_halves + cos_axes * sin_halves) + 1e-12);
 }
 
 std::int64_t physicalMemoryBytes() {
@@ -86,6 +107,10 @@ std::int64_t physicalMemoryBytes() {
 // plane it lies beyond the edge's line and outside the Voronoi regions of the other two edges' interiors.
 struct EdgeRegion {
   Eigen::Vector3d a, b, outward, to_d_from_a, to_d_from_b;
+  // Per half-space, how far its linear function may drop from a voxel's center to its lowest corner (half
+  // edge times the 1-norm of the normal) plus the rounding margin: a voxel-sized cube is inside the
+  // half-space exactly when its center clears the half-space by this much.
+  double outward_reach = 0, from_a_reach = 0, from_b_reach = 0;
   int neighbours_begin = 0, neighbours_end = 0;  // other triangles sharing the edge, in edge_neighbours
   bool usable = false;
 };
@@ -95,7 +120,7 @@ struct Topology {
   std::vector<int> edge_neighbours;
 };
 
-Topology makeTopology(const MeshModel& geometry) {
+Topology makeTopology(const MeshModel& geometry, double half, double margin) {
   const auto& triangles = geometry.mesh.triangles;
   std::unordered_map<std::uint64_t, std::vector<int>> by_edge;
   auto key = [](int u, int v) { return (std::uint64_t(std::min(u, v)) << 32) | std::uint32_t(std::max(u, v)); };
@@ -121,6 +146,9 @@ Topology makeTopology(const MeshModel& geometry) {
       region.outward = outward;
       region.to_d_from_a = d - region.a;
       region.to_d_from_b = d - region.b;
+      region.outward_reach = half * outward.cwiseAbs().sum() + margin * outward.norm();
+      region.from_a_reach = half * region.to_d_from_a.cwiseAbs().sum() + margin * region.to_d_from_a.norm();
+      region.from_b_reach = half * region.to_d_from_b.cwiseAbs().sum() + margin * region.to_d_from_b.norm();
       region.neighbours_begin = int(topology.edge_neighbours.size());
       for (int other : by_edge[key(u, v)]) {
         if (other != t) topology.edge_neighbours.push_back(other);
@@ -132,18 +160,13 @@ Topology makeTopology(const MeshModel& geometry) {
   return topology;
 }
 
-// Whether all of the voxel (its eight corners; the half-spaces are convex) lies strictly inside the edge's
-// region, with a margin so that rounding never decides.
-bool voxelInEdgeRegion(const EdgeRegion& region, const Eigen::Vector3d corners[8], double margin) {
-  const double outward_margin = margin * region.outward.norm();
-  const double da_margin = margin * region.to_d_from_a.norm();
-  const double db_margin = margin * region.to_d_from_b.norm();
-  for (int n = 0; n < 8; ++n) {
-    if ((corners[n] - region.a).dot(region.outward) <= outward_margin) return false;
-    if ((corners[n] - region.a).dot(region.to_d_from_a) >= -da_margin) return false;
-    if ((corners[n] - region.b).dot(region.to_d_from_b) >= -db_margin) return false;
-  }
-  return true;
+// Whether all of the voxel of center `center` lies strictly inside the edge's region, with a margin so that
+// rounding never decides. Each half-space is linear, so its lowest value over the cube is at a corner: the
+// center's value minus the reach.
+bool voxelInEdgeRegion(const EdgeRegion& region, const Eigen::Vector3d& center) {
+  return (center - region.a).dot(region.outward) > region.outward_reach &&
+         (center - region.a).dot(region.to_d_from_a) < -region.from_a_reach &&
+         (center - region.b).dot(region.to_d_from_b) < -region.from_b_reach;
 }
 
 // dmin in units of `unit`, rounded down and saturated, so that unit * result <= dmin (a lower bound).
@@ -151,6 +174,16 @@ std::uint8_t quantizeEntryBound(double d_min, double unit) {
   const double units = std::floor(d_min * (1 - 1e-9) / unit);
   return static_cast<std::uint8_t>(std::clamp(units, 0.0, 255.0));
 }
+
+// Per-worker scratch of the list pass, reused from voxel to voxel.
+struct ListScratch {
+  // Topology culling: marks[t] == m - 1 when triangle t is listed in the current voxel and not droppable,
+  // m when droppable, m = last_mark; any other value means not listed.
+  std::vector<std::uint64_t> marks;
+  std::uint64_t last_mark = 1;
+  std::vector<std::uint8_t> edge_masks;  // per list entry: the edges whose region holds the voxel
+  std::vector<std::uint64_t> sort_keys;  // (bound, id)
+};
 
 struct RowLists {
   std::vector<std::int32_t> ids;      // the row's lists, one after another
@@ -208,7 +241,9 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   }
 
   const int threads = workerCount(options.threads);
-  const Topology topology = options.topology_culling ? makeTopology(geometry) : Topology();
+  const double half = 0.5 * grid.voxel_size;
+  const Topology topology =
+      options.topology_culling ? makeTopology(geometry, half, 1e-9 * grid.voxel_size) : Topology();
   const auto& progress = options.progress;
 
   // 1. Distance field at the grid corners, with the nearest triangle of each. Rows are walked in order so
@@ -216,7 +251,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   model.corner_distance.resize(corner_count);
   std::vector<int> corner_triangle(corner_count, 0);
   const int corner_rows = (grid.dims[1] + 1) * (grid.dims[2] + 1);
-  parallelFor(corner_rows, threads, progress, 0.0, 0.2, [&](std::int64_t row) {
+  parallelFor(corner_rows, threads, progress, 0.0, 0.2, [&](std::int64_t row, int) {
     const int j = static_cast<int>(row % (grid.dims[1] + 1));
     const int k = static_cast<int>(row / (grid.dims[1] + 1));
     int hint = -1;
@@ -244,143 +279,160 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   //    U + sqrt(3) e of c can belong, and a Bvh ball query finds them.
   const int rows = grid.dims[1] * grid.dims[2];
   std::vector<RowLists> row_lists(rows);
-  const double half = 0.5 * grid.voxel_size;
   const double half_diagonal = std::sqrt(3.0) * half;
   const double bound_unit = model.entryBoundUnit();
-  parallelFor(rows, threads, progress, 0.2, 0.95, [&](std::int64_t row) {
+  std::vector<ListScratch> list_scratch(threads);
+  if (options.topology_culling) {
+    for (ListScratch& scratch : list_scratch) scratch.marks.assign(geometry.mesh.triangles.size(), 0);
+  }
+  parallelFor(rows, threads, progress, 0.2, 0.95, [&](std::int64_t row, int worker) {
     const int j = static_cast<int>(row % grid.dims[1]);
     const int k = static_cast<int>(row / grid.dims[1]);
     RowLists& out = row_lists[row];
+    ListScratch& scratch = list_scratch[worker];
     out.counts.reserve(grid.dims[0]);
     out.lower_bounds.reserve(grid.dims[0]);
-    std::vector<int> candidates;
-    std::vector<int> upper_candidates;
-    std::vector<bool> droppable;
-    std::vector<std::pair<std::uint8_t, std::int32_t>> sort_scratch;
     for (int i = 0; i < grid.dims[0]; ++i) {
+      const Eigen::Vector3d center = grid.voxelCenter(i, j, k);
       Eigen::Vector3d corners[8];
-      upper_candidates.clear();
+      int upper_candidates[9];
+      int upper_candidate_count = 0;
       for (int n = 0; n < 8; ++n) {
         const int ci = i + (n & 1), cj = j + ((n >> 1) & 1), ck = k + ((n >> 2) & 1);
         corners[n] = grid.cornerPosition(ci, cj, ck);
         const int t = corner_triangle[grid.cornerIndex(ci, cj, ck)];
-        if (std::find(upper_candidates.begin(), upper_candidates.end(), t) == upper_candidates.end()) {
-          upper_candidates.push_back(t);
+        if (std::find(upper_candidates, upper_candidates + upper_candidate_count, t) ==
+            upper_candidates + upper_candidate_count) {
+          upper_candidates[upper_candidate_count++] = t;
         }
       }
-      double upper = kInfinity;  // squared
-      for (int t : upper_candidates) {
-        const auto& c = geometry.corners[t];
-        double farthest = 0;
-        for (int n = 0; n < 8 && farthest < upper; ++n) {
-          farthest = std::max(farthest, pointTriangleSquaredDistance(corners[n], c[0], c[1], c[2]));
-        }
-        upper = std::min(upper, farthest);
-      }
-      const Eigen::Vector3d center = grid.voxelCenter(i, j, k);
       // The triangle nearest to the center: a candidate for U, and the reference of the cone test below.
+      // The corners' nearest triangles are a warm start, usually the answer.
       double center_squared = kInfinity;
       int center_triangle = -1;
+      for (int n = 0; n < upper_candidate_count; ++n) {
+        const auto& c = geometry.corners[upper_candidates[n]];
+        const double d = pointTriangleSquaredDistance(center, c[0], c[1], c[2]);
+        if (d < center_squared) {
+          center_squared = d;
+          center_triangle = upper_candidates[n];
+        }
+      }
       detail::nearestTriangle(geometry, center, center_squared, center_triangle);
-      {
-        const auto& c = geometry.corners[center_triangle];
+      if (std::find(upper_candidates, upper_candidates + upper_candidate_count, center_triangle) ==
+          upper_candidates + upper_candidate_count) {
+        upper_candidates[upper_candidate_count++] = center_triangle;
+      }
+      double upper = kInfinity;  // squared
+      for (int n = 0; n < upper_candidate_count; ++n) {
+        const auto& c = geometry.corners[upper_candidates[n]];
         double farthest = 0;
-        for (int n = 0; n < 8 && farthest < upper; ++n) {
-          farthest = std::max(farthest, pointTriangleSquaredDistance(corners[n], c[0], c[1], c[2]));
+        for (int m = 0; m < 8 && farthest < upper; ++m) {
+          farthest = std::max(farthest, pointTriangleSquaredDistance(corners[m], c[0], c[1], c[2]));
         }
         upper = std::min(upper, farthest);
       }
       // Rounded up: a list may hold one triangle too many, never one too few.
       const double upper_bound = std::nextafter(std::sqrt(upper), kInfinity) * (1 + 1e-12);
+      const double upper_bound_squared = upper_bound * upper_bound;
       const double center_distance = std::sqrt(center_squared);
       // Cone test. For p in the voxel (within half_diagonal of the center), f(p) = dist(p, i) - dist(p, k)
       // with k = center_triangle changes at most |u_i - u_k| per unit length, u being the unit direction
-      // from a triangle's closest point to p. While the voxel's ball stays clear of a triangle's bounding
-      // sphere, u lies in a cone around the direction from the sphere's center, so |u_i - u_k| is bounded by
-      // the chord of the angle between the two cones' axes plus both half-angles. If
+      // from a triangle's closest point to p. While the voxel's ball stays clear of a sphere around a
+      // triangle, u lies in that sphere's DirectionCone, so |u_i - u_k| is at most coneChordBound. If
       // f(center) > half_diagonal * that bound, k is strictly closer than i everywhere in the voxel. Far from
-      // the mesh this drops the wide rim of triangles that the dmin/dmax test alone keeps.
+      // the mesh this drops the wide rim of triangles that the dmin/dmax test alone keeps. Any sphere holding
+      // the triangle serves, so a Bvh node's sphere and its box distance exclude the whole subtree at once.
       const Eigen::Vector4d& sphere_k = geometry.spheres[center_triangle];
       const Eigen::Vector3d axis_k = center - sphere_k.head<3>();
-      const double reach_k = half_diagonal + sphere_k[3];
       const double axis_k_length = axis_k.norm();
-      const bool cone_usable = axis_k_length > reach_k;
-      const Eigen::Vector3d direction_k = cone_usable ? Eigen::Vector3d(axis_k / axis_k_length) : Eigen::Vector3d::Zero();
-      const double half_angle_k = cone_usable ? std::asin(reach_k / axis_k_length) : 0.0;
-      trianglesNear(geometry, center, upper_bound + half_diagonal, candidates);
+      const bool cone_usable = axis_k_length > half_diagonal + sphere_k[3];
+      const DirectionCone cone_k =
+          cone_usable ? makeDirectionCone(axis_k, axis_k_length, half_diagonal + sphere_k[3]) : DirectionCone();
+      // Whether k beats every triangle within the sphere (sphere_center, sphere_radius) everywhere in the voxel,
+      // given a lower bound `near` on their distances to the center. Margin: a few ulps of every term,
+      // relative to the voxel's reach. Two cheap necessary conditions come first: coneChordBound is at
+      // least 2 sin(a / 2 + b / 2) >= sqrt(2) (sin(a / 2) + sin(b / 2)) (both halves below pi / 4) for the
+      // half-angles a of k's cone and b of i's, and sin(b / 2) >= sin(b) / 2; the 0.999 keeps them strictly
+      // weaker than the full test, so they only save time.
+      const double chord_floor_k = 0.999 * std::sqrt(2.0) * half_diagonal * cone_k.sin_half;
+      auto coneExcludes = [&](double near, const Eigen::Vector3d& sphere_center, double sphere_radius) {
+        const double excess = near - center_distance;
+        const double margin = 1e-12 * (center_distance + near + half_diagonal);
+        if (!(excess > margin + chord_floor_k)) return false;
+        const Eigen::Vector3d axis_i = center - sphere_center;
+        const double length_i = axis_i.norm();
+        const double r_i = half_diagonal + sphere_radius;
+        if (!(length_i > r_i)) return false;
+        if (!(excess > margin + chord_floor_k + 0.999 * std::sqrt(0.5) * half_diagonal * r_i / length_i)) return false;
+        const DirectionCone cone_i = makeDirectionCone(axis_i, length_i, r_i);
+        return excess > half_diagonal * coneChordBound(cone_k, cone_i) * (1 + 1e-9) + margin;
+      };
+
       std::uint32_t count = 0;
       double lower = kInfinity;
-      for (int t : candidates) {
-        const auto& c = geometry.corners[t];
-        Eigen::Vector3d closest;
-        const double d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
-        if (d_center - half_diagonal > upper_bound) continue;
-        double d_min = detail::cubeTriangleQuickBound(center, half, c[0], c[1], c[2], closest);
-        if (d_min > upper_bound) continue;
-        if (cone_usable && t != center_triangle) {
-          const Eigen::Vector4d& sphere_i = geometry.spheres[t];
-          const Eigen::Vector3d axis_i = center - sphere_i.head<3>();
-          const double reach_i = half_diagonal + sphere_i[3];
-          const double axis_i_length = axis_i.norm();
-          if (axis_i_length > reach_i) {
-            const double cosine = std::clamp(direction_k.dot(axis_i) / axis_i_length, -1.0, 1.0);
-            const double angle = std::acos(cosine) + std::asin(reach_i / axis_i_length) + half_angle_k;
-            const double gradient = angle >= M_PI ? 2.0 : 2.0 * std::sin(0.5 * angle);
-            // Margin: a few ulps of every term, relative to the voxel's reach.
-            const double margin = 1e-12 * (center_distance + d_center + half_diagonal);
-            if (d_center - center_distance > half_diagonal * gradient * (1 + 1e-9) + margin) continue;
-          }
+      // Triangles that may belong: a Bvh walk that skips nodes whose box is farther than U from the voxel's
+      // cube (then dmin > U for all below), or that the cone test excludes as a whole.
+      const auto& nodes = geometry.bvh.nodes;
+      int stack[128];  // see detail::nearestTriangle for why this is enough
+      int top = 0;
+      stack[top++] = 0;
+      while (top > 0) {
+        const BvhNode& node = nodes[stack[--top]];
+        const Eigen::Vector3d outside =
+            (node.box.min - center).cwiseMax(center - node.box.max).cwiseMax(0.0);
+        if ((outside.array() - half).max(0.0).matrix().squaredNorm() > upper_bound_squared) continue;
+        if (cone_usable && coneExcludes(outside.norm(), node.center, node.radius)) continue;
+        if (!node.isLeaf()) {
+          stack[top++] = node.first;
+          stack[top++] = node.first + 1;
+          continue;
         }
-        // The full separating-axis bound last: it is the costly one, and most candidates are decided above.
-        d_min = std::max(d_min, detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2]));
-        if (d_min > upper_bound) continue;
-        out.ids.push_back(t);
-        out.bounds.push_back(quantizeEntryBound(d_min, bound_unit));
-        ++count;
-        lower = std::min(lower, d_min);
+        for (int n = node.first; n < node.first + node.count; ++n) {
+          const int t = geometry.bvh.triangle_ids[n];
+          const auto& c = geometry.corners[t];
+          Eigen::Vector3d closest;
+          const double d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
+          if (d_center - half_diagonal > upper_bound) continue;
+          double d_min = detail::cubeTriangleQuickBound(center, half, c[0], c[1], c[2], closest);
+          if (d_min > upper_bound) continue;
+          if (cone_usable && t != center_triangle) {
+            const Eigen::Vector4d& sphere_i = geometry.spheres[t];
+            if (coneExcludes(d_center, sphere_i.head<3>(), sphere_i[3])) continue;
+          }
+          // The full separating-axis bound last: it is the costly one, and most candidates are decided above.
+          d_min = detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], d_min);
+          if (d_min > upper_bound) continue;
+          out.ids.push_back(t);
+          out.bounds.push_back(quantizeEntryBound(d_min, bound_unit));
+          ++count;
+          lower = std::min(lower, d_min);
+        }
       }
-      // Sorted by id while culling (it searches the list), by (bound, id) once done.
-      sort_scratch.clear();
-      for (std::uint32_t n = 0; n < count; ++n) {
-        sort_scratch.push_back({out.bounds[out.bounds.size() - count + n], out.ids[out.ids.size() - count + n]});
-      }
-      std::sort(sort_scratch.begin(), sort_scratch.end(),
-                [](const auto& x, const auto& y) { return x.second < y.second; });
-      for (std::uint32_t n = 0; n < count; ++n) {
-        out.bounds[out.bounds.size() - count + n] = sort_scratch[n].first;
-        out.ids[out.ids.size() - count + n] = sort_scratch[n].second;
-      }
+      std::int32_t* list = out.ids.data() + (out.ids.size() - count);
+      std::uint8_t* bounds = out.bounds.data() + (out.bounds.size() - count);
       if (options.topology_culling && count > 1) {
         // Paper section 3.6, in a form that is provably conservative on any mesh: triangle i leaves the
         // list when every point of the voxel has its closest point of i on an edge shared with a triangle j
         // that stays (j is then at least as close everywhere; a j missing from the list is strictly beaten
-        // by another triangle, and so is i).
-        std::int32_t* list = out.ids.data() + (out.ids.size() - count);
-        std::uint8_t* bounds = out.bounds.data() + (out.bounds.size() - count);
-        const double margin = 1e-9 * grid.voxel_size;
-        droppable.assign(count, false);
+        // by another triangle, and so is i). Marks say which triangles are listed and droppable this voxel.
+        const std::uint64_t droppable_mark = (scratch.last_mark += 2);
+        scratch.edge_masks.assign(count, 0);
         for (std::uint32_t n = 0; n < count; ++n) {
-          for (const EdgeRegion& region : topology.edges[list[n]]) {
-            if (region.usable && voxelInEdgeRegion(region, corners, margin)) {
-              droppable[n] = true;
-              break;
-            }
+          const auto& regions = topology.edges[list[n]];
+          for (int e = 0; e < 3; ++e) {
+            if (regions[e].usable && voxelInEdgeRegion(regions[e], center)) scratch.edge_masks[n] |= 1 << e;
           }
+          scratch.marks[list[n]] = scratch.edge_masks[n] ? droppable_mark : droppable_mark - 1;
         }
-        auto staysInList = [&](int triangle) {
-          const std::int32_t* found = std::lower_bound(list, list + count, triangle);
-          return found == list + count || *found != triangle || !droppable[found - list];
-        };
         std::uint32_t kept = 0;
         for (std::uint32_t n = 0; n < count; ++n) {
           bool drop = false;
-          if (droppable[n]) {
-            for (const EdgeRegion& region : topology.edges[list[n]]) {
-              if (!region.usable || !voxelInEdgeRegion(region, corners, margin)) continue;
-              for (int m = region.neighbours_begin; m < region.neighbours_end && !drop; ++m) {
-                drop = staysInList(topology.edge_neighbours[m]);
-              }
-              if (drop) break;
+          for (int e = 0; e < 3 && !drop; ++e) {
+            if (!(scratch.edge_masks[n] >> e & 1)) continue;
+            const EdgeRegion& region = topology.edges[list[n]][e];
+            for (int m = region.neighbours_begin; m < region.neighbours_end && !drop; ++m) {
+              drop = scratch.marks[topology.edge_neighbours[m]] != droppable_mark;
             }
           }
           if (!drop) {
@@ -394,16 +446,14 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       }
       // The query scans a list in this order and stops at the first entry whose bound reaches its best
       // distance so far.
-      {
-        sort_scratch.clear();
-        for (std::uint32_t n = 0; n < count; ++n) {
-          sort_scratch.push_back({out.bounds[out.bounds.size() - count + n], out.ids[out.ids.size() - count + n]});
-        }
-        std::sort(sort_scratch.begin(), sort_scratch.end());
-        for (std::uint32_t n = 0; n < count; ++n) {
-          out.bounds[out.bounds.size() - count + n] = sort_scratch[n].first;
-          out.ids[out.ids.size() - count + n] = sort_scratch[n].second;
-        }
+      scratch.sort_keys.clear();
+      for (std::uint32_t n = 0; n < count; ++n) {
+        scratch.sort_keys.push_back(std::uint64_t(bounds[n]) << 32 | std::uint32_t(list[n]));
+      }
+      std::sort(scratch.sort_keys.begin(), scratch.sort_keys.end());
+      for (std::uint32_t n = 0; n < count; ++n) {
+        bounds[n] = static_cast<std::uint8_t>(scratch.sort_keys[n] >> 32);
+        list[n] = static_cast<std::int32_t>(scratch.sort_keys[n] & 0xffffffffu);
       }
       out.counts.push_back(count);
       // The lower bound of the voxel: the closest triangle to any of its points is listed, so the smallest

@@ -24,27 +24,42 @@ inline double cubeTriangleQuickBound(const Eigen::Vector3d& center, double half,
 }
 
 /// The separating-axis terms of cubeTriangleLowerBound: the gaps along the triangle normal and the nine
-/// edge-cross-axis directions (the box axes are in cubeTriangleQuickBound).
+/// edge-cross-axis directions (the box axes are in cubeTriangleQuickBound), or `at_least` if that is larger.
+/// An axis is normalized (a square root and a division) only when its unnormalized gap can beat the bound
+/// so far, compared squared; rounding there only decides between two valid lower bounds.
 inline double cubeTriangleSeparatingAxisBound(const Eigen::Vector3d& center, double half, const Eigen::Vector3d& a,
-                                              const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
-  const Eigen::Vector3d v0 = a - center, v1 = b - center, v2 = c - center;
-  auto axisGap = [&](const Eigen::Vector3d& axis) {
-    const double length = axis.norm();
-    if (!(length > 1e-300)) return 0.0;
-    const double p0 = axis.dot(v0), p1 = axis.dot(v1), p2 = axis.dot(v2);
-    const double radius = half * axis.cwiseAbs().sum();
+                                              const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                                              double at_least = 0.0) {
+  // Scalar code: the builder calls this for every listed entry, and Eigen's 3-vectors lose to plain scalars.
+  const double v[3][3] = {{a.x() - center.x(), a.y() - center.y(), a.z() - center.z()},
+                          {b.x() - center.x(), b.y() - center.y(), b.z() - center.z()},
+                          {c.x() - center.x(), c.y() - center.y(), c.z() - center.z()}};
+  double bound = std::max(at_least, 0.0);
+  auto axisGap = [&](double x, double y, double z) {
+    const double p0 = x * v[0][0] + y * v[0][1] + z * v[0][2];
+    const double p1 = x * v[1][0] + y * v[1][1] + z * v[1][2];
+    const double p2 = x * v[2][0] + y * v[2][1] + z * v[2][2];
+    const double radius = half * (std::abs(x) + std::abs(y) + std::abs(z));
     const double gap = std::max(std::min({p0, p1, p2}) - radius, -std::max({p0, p1, p2}) - radius);
-    return gap / length;
+    if (!(gap > 0)) return;
+    const double length_squared = x * x + y * y + z * z;
+    if (!(gap * gap > bound * bound * length_squared)) return;
+    const double length = std::sqrt(length_squared);
+    if (!(length > 1e-300)) return;
+    bound = std::max(bound, gap / length);
   };
-  const Eigen::Vector3d e0 = v1 - v0, e1 = v2 - v1, e2 = v0 - v2;
-  double bound = axisGap(e0.cross(e1));
-  const Eigen::Vector3d edges[3] = {e0, e1, e2};
-  for (const Eigen::Vector3d& edge : edges) {
-    bound = std::max(bound, axisGap(Eigen::Vector3d(0, -edge.z(), edge.y())));
-    bound = std::max(bound, axisGap(Eigen::Vector3d(edge.z(), 0, -edge.x())));
-    bound = std::max(bound, axisGap(Eigen::Vector3d(-edge.y(), edge.x(), 0)));
+  double e[3][3];
+  for (int n = 0; n < 3; ++n) {
+    for (int d = 0; d < 3; ++d) e[n][d] = v[(n + 1) % 3][d] - v[n][d];
   }
-  return std::max(bound, 0.0);
+  axisGap(e[0][1] * e[1][2] - e[0][2] * e[1][1], e[0][2] * e[1][0] - e[0][0] * e[1][2],
+          e[0][0] * e[1][1] - e[0][1] * e[1][0]);
+  for (const auto& edge : e) {
+    axisGap(0, -edge[2], edge[1]);
+    axisGap(edge[2], 0, -edge[0]);
+    axisGap(-edge[1], edge[0], 0);
+  }
+  return bound;
 }
 
 /// A lower bound on the distance between the cube of center `center` and half edge `half` and the triangle
@@ -56,8 +71,7 @@ inline double cubeTriangleSeparatingAxisBound(const Eigen::Vector3d& center, dou
 inline double cubeTriangleLowerBound(const Eigen::Vector3d& center, double half, const Eigen::Vector3d& a,
                                      const Eigen::Vector3d& b, const Eigen::Vector3d& c,
                                      const Eigen::Vector3d& closest) {
-  return std::max(cubeTriangleQuickBound(center, half, a, b, c, closest),
-                  cubeTriangleSeparatingAxisBound(center, half, a, b, c));
+  return cubeTriangleSeparatingAxisBound(center, half, a, b, c, cubeTriangleQuickBound(center, half, a, b, c, closest));
 }
 
 }  // namespace cfl::detail

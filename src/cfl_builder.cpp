@@ -177,8 +177,8 @@ std::uint8_t quantizeEntryBound(double d_min, double unit) {
 
 // Per-worker scratch of the list pass, reused from voxel to voxel.
 struct ListScratch {
-  // Topology culling: marks[t] == m - 1 when triangle t is listed in the current voxel and not droppable,
-  // m when droppable, m = last_mark; any other value means not listed.
+  // Topology culling: marks[t] in (last_mark - 2, last_mark] when triangle t is listed in the current
+  // voxel, saying whether it stays, may leave or has left; any other value means not listed.
   std::vector<std::uint64_t> marks;
   std::uint64_t last_mark = 1;
   std::vector<std::uint8_t> edge_masks;  // per list entry: the edges whose region holds the voxel
@@ -412,30 +412,48 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       std::int32_t* list = out.ids.data() + (out.ids.size() - count);
       std::uint8_t* bounds = out.bounds.data() + (out.bounds.size() - count);
       if (options.topology_culling && count > 1) {
-        // Paper section 3.6, in a form that is provably conservative on any mesh: triangle i leaves the
+        // Paper section 3.6, in a form that is provably conservative on any mesh: triangle i may leave the
         // list when every point of the voxel has its closest point of i on an edge shared with a triangle j
-        // that stays (j is then at least as close everywhere; a j missing from the list is strictly beaten
-        // by another triangle, and so is i). Marks say which triangles are listed and droppable this voxel.
-        const std::uint64_t droppable_mark = (scratch.last_mark += 2);
+        // (its witness), so that j is at least as close everywhere. It does leave when some witness stays,
+        // is missing from the list, or has itself left through such a chain. Why that is safe: a triangle
+        // missing from the list is strictly beaten everywhere by another, so for any point p, following
+        // witnesses from one of p's nearest triangles never increases the distance and ends at a triangle
+        // that stays (a missing one would be strictly beaten, so not nearest). Witnesses that only lean on
+        // each other in a cycle all stay. The result is the least fixed point of a monotone rule, so it
+        // does not depend on the order of the list.
+        const std::uint64_t stays = (scratch.last_mark += 3) - 2;  // listed, not droppable
+        const std::uint64_t undecided = stays + 1, left = stays + 2;  // droppable: not yet shown / shown
         scratch.edge_masks.assign(count, 0);
+        bool any_droppable = false;
         for (std::uint32_t n = 0; n < count; ++n) {
           const auto& regions = topology.edges[list[n]];
           for (int e = 0; e < 3; ++e) {
             if (regions[e].usable && voxelInEdgeRegion(regions[e], center)) scratch.edge_masks[n] |= 1 << e;
           }
-          scratch.marks[list[n]] = scratch.edge_masks[n] ? droppable_mark : droppable_mark - 1;
+          scratch.marks[list[n]] = scratch.edge_masks[n] ? undecided : stays;
+          any_droppable = any_droppable || scratch.edge_masks[n];
+        }
+        for (bool changed = any_droppable; changed;) {
+          changed = false;
+          for (std::uint32_t n = 0; n < count; ++n) {
+            if (scratch.marks[list[n]] != undecided) continue;
+            bool drop = false;
+            for (int e = 0; e < 3 && !drop; ++e) {
+              if (!(scratch.edge_masks[n] >> e & 1)) continue;
+              const EdgeRegion& region = topology.edges[list[n]][e];
+              for (int m = region.neighbours_begin; m < region.neighbours_end && !drop; ++m) {
+                drop = scratch.marks[topology.edge_neighbours[m]] != undecided;
+              }
+            }
+            if (drop) {
+              scratch.marks[list[n]] = left;
+              changed = true;
+            }
+          }
         }
         std::uint32_t kept = 0;
         for (std::uint32_t n = 0; n < count; ++n) {
-          bool drop = false;
-          for (int e = 0; e < 3 && !drop; ++e) {
-            if (!(scratch.edge_masks[n] >> e & 1)) continue;
-            const EdgeRegion& region = topology.edges[list[n]][e];
-            for (int m = region.neighbours_begin; m < region.neighbours_end && !drop; ++m) {
-              drop = scratch.marks[topology.edge_neighbours[m]] != droppable_mark;
-            }
-          }
-          if (!drop) {
+          if (scratch.marks[list[n]] != left) {
             bounds[kept] = bounds[n];
             list[kept++] = list[n];
           }

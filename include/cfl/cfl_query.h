@@ -31,7 +31,9 @@ struct DistanceOptions {
   QueryMode mode = QueryMode::kHierarchical;
   /// FCL's early-termination tolerances: a part of the search is skipped when its lower bound lb satisfies
   /// lb >= best - abs_err and lb * (1 + rel_err) >= best. The returned distance d then satisfies
-  /// d <= true + abs_err and d <= true * (1 + rel_err); it is still the distance of the returned pair.
+  /// d <= true + abs_err and d <= true * (1 + rel_err); it is still the distance of the returned pair. Both
+  /// conditions must hold, as in FCL, so rel_err alone (abs_err = 0) keeps the query exact; set abs_err too
+  /// (e.g. to the diagonal) to let rel_err act alone.
   double rel_err = 0;
   double abs_err = 0;
   /// Warm start: a triangle pair (A id, B id) whose distance seeds the search as an upper bound, such as the

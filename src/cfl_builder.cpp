@@ -183,6 +183,7 @@ struct ListScratch {
   std::uint64_t last_mark = 1;
   std::vector<std::uint8_t> edge_masks;  // per list entry: the edges whose region holds the voxel
   std::vector<std::uint64_t> sort_keys;  // (bound, id)
+  std::vector<double> quick_bounds;      // per list entry: cubeTriangleQuickBound, before the full bound
 };
 
 struct RowLists {
@@ -370,7 +371,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       };
 
       std::uint32_t count = 0;
-      double lower = kInfinity;
+      scratch.quick_bounds.clear();
       // Triangles that may belong: a Bvh walk that skips nodes whose box is farther than U from the voxel's
       // cube (then dmin > U for all below), or that the cone test excludes as a whole.
       const auto& nodes = geometry.bvh.nodes;
@@ -400,13 +401,13 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
             const Eigen::Vector4d& sphere_i = geometry.spheres[t];
             if (coneExcludes(d_center, sphere_i.head<3>(), sphere_i[3])) continue;
           }
-          // The full separating-axis bound last: it is the costly one, and most candidates are decided above.
-          d_min = detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], d_min);
-          if (d_min > upper_bound) continue;
+          // The full separating-axis bound comes after topology culling, for the entries that stay: it is
+          // the costly test and seldom excludes. Culling sees a few triangles too many, so it may keep more,
+          // never fewer (a witness it sees as listed or as missing is good either way).
           out.ids.push_back(t);
-          out.bounds.push_back(quantizeEntryBound(d_min, bound_unit));
+          out.bounds.push_back(0);
+          scratch.quick_bounds.push_back(d_min);
           ++count;
-          lower = std::min(lower, d_min);
         }
       }
       std::int32_t* list = out.ids.data() + (out.ids.size() - count);
@@ -454,9 +455,27 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
         std::uint32_t kept = 0;
         for (std::uint32_t n = 0; n < count; ++n) {
           if (scratch.marks[list[n]] != left) {
-            bounds[kept] = bounds[n];
+            scratch.quick_bounds[kept] = scratch.quick_bounds[n];
             list[kept++] = list[n];
           }
+        }
+        out.ids.resize(out.ids.size() - (count - kept));
+        out.bounds.resize(out.bounds.size() - (count - kept));
+        count = kept;
+      }
+      // The lower bound of the voxel: the closest triangle to any of its points is listed, so the smallest
+      // listed dmin bounds the voxel-mesh distance from below.
+      double lower = kInfinity;
+      {
+        std::uint32_t kept = 0;
+        for (std::uint32_t n = 0; n < count; ++n) {
+          const auto& c = geometry.corners[list[n]];
+          const double d_min =
+              detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], scratch.quick_bounds[n]);
+          if (d_min > upper_bound) continue;
+          lower = std::min(lower, d_min);
+          bounds[kept] = quantizeEntryBound(d_min, bound_unit);
+          list[kept++] = list[n];
         }
         out.ids.resize(out.ids.size() - (count - kept));
         out.bounds.resize(out.bounds.size() - (count - kept));
@@ -474,8 +493,6 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
         list[n] = static_cast<std::int32_t>(scratch.sort_keys[n] & 0xffffffffu);
       }
       out.counts.push_back(count);
-      // The lower bound of the voxel: the closest triangle to any of its points is listed, so the smallest
-      // listed dmin bounds the voxel-mesh distance from below.
       out.lower_bounds.push_back(std::nextafter(lower, 0.0) * (1 - 1e-12));
     }
   });

@@ -60,38 +60,42 @@ void parallelFor(std::int64_t count, int threads, const std::function<void(doubl
 
 // The directions from any point of a sphere to any point of a ball around p lie in a cone around the axis
 // from the sphere's center to p, of half-angle asin((ball radius + sphere radius) / axis length), provided
-// the two are disjoint. Kept as the sine and cosine of HALF that half-angle, so that the cone test below
-// needs no inverse trigonometry and adds only nonnegative terms.
+// the two are disjoint. Kept as the sine and cosine of the half-angle, so that the cone test needs no
+// inverse trigonometry.
 struct DirectionCone {
   Eigen::Vector3d axis;  // unit
-  double sin_half = 0, cos_half = 1;
+  double sine = 0, cosine = 1;
 };
 
-// The cone of axis `axis` (from the sphere's center to p) and length `length`, for r = ball radius + sphere
-// radius < length.
-DirectionCone makeDirectionCone(const Eigen::Vector3d& axis, double length, double r) {
+// The cone for the axis `axis` (from the sphere's center to p), r = ball radius + sphere radius < |axis|.
+DirectionCone makeDirectionCone(const Eigen::Vector3d& axis, double r) {
+  const double length = axis.norm();
   DirectionCone cone;
   cone.axis = axis / length;
-  const double sine = r / length;
-  const double cosine = std::sqrt((length - r) * (length + r)) / length;
-  cone.cos_half = std::sqrt(0.5 * (1 + cosine));
-  cone.sin_half = sine / (2 * cone.cos_half);
+  cone.sine = r / length;
+  cone.cosine = std::sqrt((length - r) * (length + r)) / length;
   return cone;
 }
 
-// An upper bound on |u - v| for u in cone a and v in cone b: the chord 2 sin(theta / 2) of the largest angle
-// theta between them, the angle between the axes plus both half-angles (capped at pi). Half the axes' angle
-// comes from their difference and sum (both unit), which stays accurate for small angles where acos does
-// not. Every sine and cosine here is in [0, 1] and the result sums nonnegative products, so rounding is a
-// few ulps relative plus ulps of 1 absolute; the caller's 1 + 1e-9 factor and the 1e-12 added here cover it.
-double coneChordBound(const DirectionCone& a, const DirectionCone& b) {
-  const double sin_axes = 0.5 * (a.axis - b.axis).norm();
-  const double cos_axes = 0.5 * (a.axis + b.axis).norm();
-  const double sin_halves = a.sin_half * b.cos_half + a.cos_half * b.sin_half;  // each half below pi / 4
-  const double cos_halves = a.cos_half * b.cos_half - a.sin_half * b.sin_half;
-  const double cos_total = cos_axes * cos_halves - sin_axes * sin_halves;
-  if (!(cos_total > 0)) return 2.0;  // theta / 2 reaches pi / 2: any two unit vectors
-  return std::min(2.0, 2 * (sin_axes * cos_halves + cos_axes * sin_halves) + 1e-12);
+// An upper bound on |u - v|^2 for u in cone a and v in the cone of axis `axis` and reach r (disjoint ball and
+// sphere: r < |axis|, of squared length length_squared): 2 - 2 cos(theta) for the largest angle theta
+// between them, the angle alpha between the axes plus both half-angles (4 once that reaches pi). Sums of
+// angles go through their sines and cosines; sin(alpha) comes from a cross product, accurate at small
+// angles where acos and 1 - cos^2 are not. Rounding leaves cos(theta) a few ulps of 1 off, which the 1e-12
+// added here covers; the caller's relative factor covers the rest.
+double coneChordSquaredBound(const DirectionCone& a, const Eigen::Vector3d& axis, double length_squared, double r) {
+  const double length = std::sqrt(length_squared);
+  const double inverse = 1 / length;
+  const double sin_b = r * inverse;
+  const double cos_b = std::sqrt((length - r) * (length + r)) * inverse;
+  const double cos_alpha = a.axis.dot(axis) * inverse;
+  const double sin_alpha = a.axis.cross(axis).norm() * inverse;
+  // delta = both half-angles, each below pi / 2.
+  const double cos_delta = a.cosine * cos_b - a.sine * sin_b;
+  const double sin_delta = a.sine * cos_b + a.cosine * sin_b;
+  if (!(cos_alpha > -cos_delta)) return 4.0;  // alpha + delta >= pi: any two unit vectors
+  const double cos_theta = cos_alpha * cos_delta - sin_alpha * sin_delta;
+  return std::min(4.0, 2 - 2 * cos_theta + 1e-12);
 }
 
 std::int64_t physicalMemoryBytes() {
@@ -340,8 +344,8 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       // Cone test. For p in the voxel (within half_diagonal of the center), f(p) = dist(p, i) - dist(p, k)
       // with k = center_triangle changes at most |u_i - u_k| per unit length, u being the unit direction
       // from a triangle's closest point to p. While the voxel's ball stays clear of a sphere around a
-      // triangle, u lies in that sphere's DirectionCone, so |u_i - u_k| is at most coneChordBound. If
-      // f(center) > half_diagonal * that bound, k is strictly closer than i everywhere in the voxel. Far from
+      // triangle, u lies in that sphere's DirectionCone, so |u_i - u_k|^2 is at most coneChordSquaredBound.
+      // If f(center) > half_diagonal * its root, k is strictly closer than i everywhere in the voxel. Far from
       // the mesh this drops the wide rim of triangles that the dmin/dmax test alone keeps. Any sphere holding
       // the triangle serves, so a Bvh node's sphere and its box distance exclude the whole subtree at once.
       const Eigen::Vector4d& sphere_k = geometry.spheres[center_triangle];
@@ -349,25 +353,22 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       const double axis_k_length = axis_k.norm();
       const bool cone_usable = axis_k_length > half_diagonal + sphere_k[3];
       const DirectionCone cone_k =
-          cone_usable ? makeDirectionCone(axis_k, axis_k_length, half_diagonal + sphere_k[3]) : DirectionCone();
+          cone_usable ? makeDirectionCone(axis_k, half_diagonal + sphere_k[3]) : DirectionCone();
       // Whether k beats every triangle within the sphere (sphere_center, sphere_radius) everywhere in the voxel,
-      // given a lower bound `near` on their distances to the center. Margin: a few ulps of every term,
-      // relative to the voxel's reach. Two cheap necessary conditions come first: coneChordBound is at
-      // least 2 sin(a / 2 + b / 2) >= sqrt(2) (sin(a / 2) + sin(b / 2)) (both halves below pi / 4) for the
-      // half-angles a of k's cone and b of i's, and sin(b / 2) >= sin(b) / 2; the 0.999 keeps them strictly
-      // weaker than the full test, so they only save time.
-      const double chord_floor_k = 0.999 * std::sqrt(2.0) * half_diagonal * cone_k.sin_half;
+      // given a lower bound `near` on their distances to the center: whether near - dist(center, k) exceeds
+      // half_diagonal times the chord bound, compared squared. Margin: a few ulps of every term, relative to
+      // the voxel's reach. The chord is at least 2 sin(gamma / 2) >= sin(gamma) for k's half-angle gamma, a
+      // cheap necessary condition first (0.999 keeps it strictly weaker, so it only saves time).
+      const double chord_floor_k = 0.999 * half_diagonal * cone_k.sine;
       auto coneExcludes = [&](double near, const Eigen::Vector3d& sphere_center, double sphere_radius) {
-        const double excess = near - center_distance;
-        const double margin = 1e-12 * (center_distance + near + half_diagonal);
-        if (!(excess > margin + chord_floor_k)) return false;
+        const double spare = near - center_distance - 1e-12 * (center_distance + near + half_diagonal);
+        if (!(spare > chord_floor_k)) return false;
         const Eigen::Vector3d axis_i = center - sphere_center;
-        const double length_i = axis_i.norm();
+        const double length_i_squared = axis_i.squaredNorm();
         const double r_i = half_diagonal + sphere_radius;
-        if (!(length_i > r_i)) return false;
-        if (!(excess > margin + chord_floor_k + 0.999 * std::sqrt(0.5) * half_diagonal * r_i / length_i)) return false;
-        const DirectionCone cone_i = makeDirectionCone(axis_i, length_i, r_i);
-        return excess > half_diagonal * coneChordBound(cone_k, cone_i) * (1 + 1e-9) + margin;
+        if (!(length_i_squared > r_i * r_i)) return false;
+        const double chord_squared = coneChordSquaredBound(cone_k, axis_i, length_i_squared, r_i);
+        return spare * spare > half_diagonal * half_diagonal * chord_squared * (1 + 3e-9);
       };
 
       std::uint32_t count = 0;

@@ -181,10 +181,11 @@ std::uint8_t quantizeEntryBound(double d_min, double unit) {
 
 // Per-worker scratch of the list pass, reused from voxel to voxel.
 struct ListScratch {
-  // Topology culling: marks[t] in (last_mark - 2, last_mark] when triangle t is listed in the current
-  // voxel, saying whether it stays, may leave or has left; any other value means not listed.
-  std::vector<std::uint64_t> marks;
-  std::uint64_t last_mark = 1;
+  // Topology culling: marks[t] in [last_mark - 2, last_mark] when triangle t is listed in the current
+  // voxel, saying whether it stays, may leave or has left; any other value means not listed. Sized on first
+  // use, so that idle workers cost nothing; 4 bytes per triangle per worker.
+  std::vector<std::uint32_t> marks;
+  std::uint32_t last_mark = 0;
   std::vector<std::uint8_t> edge_masks;  // per list entry: the edges whose region holds the voxel
   std::vector<std::uint64_t> sort_keys;  // (bound, id)
   std::vector<double> quick_bounds;      // per list entry: cubeTriangleQuickBound, before the full bound
@@ -287,9 +288,6 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   const double half_diagonal = std::sqrt(3.0) * half;
   const double bound_unit = model.entryBoundUnit();
   std::vector<ListScratch> list_scratch(threads);
-  if (options.topology_culling) {
-    for (ListScratch& scratch : list_scratch) scratch.marks.assign(geometry.mesh.triangles.size(), 0);
-  }
   parallelFor(rows, threads, progress, 0.2, 0.95, [&](std::int64_t row, int worker) {
     const int j = static_cast<int>(row % grid.dims[1]);
     const int k = static_cast<int>(row / grid.dims[1]);
@@ -417,8 +415,12 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
         // that stays (a missing one would be strictly beaten, so not nearest). Witnesses that only lean on
         // each other in a cycle all stay. The result is the least fixed point of a monotone rule, so it
         // does not depend on the order of the list.
-        const std::uint64_t stays = (scratch.last_mark += 3) - 2;  // listed, not droppable
-        const std::uint64_t undecided = stays + 1, left = stays + 2;  // droppable: not yet shown / shown
+        if (scratch.marks.empty() || scratch.last_mark > std::numeric_limits<std::uint32_t>::max() - 3) {
+          scratch.marks.assign(geometry.mesh.triangles.size(), 0);
+          scratch.last_mark = 0;
+        }
+        const std::uint32_t stays = (scratch.last_mark += 3) - 2;  // listed, not droppable
+        const std::uint32_t undecided = stays + 1, left = stays + 2;  // droppable: not yet shown / shown
         scratch.edge_masks.assign(count, 0);
         bool any_droppable = false;
         for (std::uint32_t n = 0; n < count; ++n) {

@@ -310,10 +310,16 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
         }
       }
       // The triangle nearest to the center: a candidate for U, and the reference of the cone test below.
-      // No warm start from the corners' triangles: it saves about 3%, but among tied triangles (a shared
-      // vertex is often nearest) it changes which one is the reference, and on the bunny that lengthened the
-      // lists slightly.
+      // The corners' triangles bound the search, but only as a distance just above theirs: the search then
+      // prunes the same nodes it would have pruned anyway and still returns the first nearest triangle in
+      // its visiting order, so ties (a shared vertex is often nearest) break as in a search from infinity.
+      // A tied hint as the reference instead lengthened the bunny's lists slightly.
       double center_squared = kInfinity;
+      for (int n = 0; n < upper_candidate_count; ++n) {
+        const auto& c = geometry.corners[upper_candidates[n]];
+        center_squared = std::min(center_squared, pointTriangleSquaredDistance(center, c[0], c[1], c[2]));
+      }
+      center_squared = std::nextafter(center_squared * (1 + 1e-12), kInfinity);
       int center_triangle = -1;
       detail::nearestTriangle(geometry, center, center_squared, center_triangle);
       if (std::find(upper_candidates, upper_candidates + upper_candidate_count, center_triangle) ==

@@ -181,13 +181,14 @@ std::uint8_t quantizeEntryBound(double d_min, double unit) {
 
 // Per-worker scratch of the list pass, reused from voxel to voxel.
 struct ListScratch {
-  // Topology culling: marks[t] in [last_mark - 2, last_mark] when triangle t is listed in the current
-  // voxel, saying whether it stays, may leave or has left; any other value means not listed. Sized on first
-  // use, so that idle workers cost nothing; 4 bytes per triangle per worker.
+  // Topology culling: marks[t] in [last_mark - 3, last_mark] when triangle t is a candidate of the current
+  // voxel, saying whether a test excluded it, it stays, may leave or has left; any other value means not a
+  // candidate. Sized on first use, so that idle workers cost nothing; 4 bytes per triangle per worker.
   std::vector<std::uint32_t> marks;
   std::uint32_t last_mark = 0;
-  std::vector<std::uint8_t> edge_masks;  // per list entry: the edges whose region holds the voxel
+  std::vector<std::uint8_t> edge_masks;  // per candidate: the edges whose region holds the voxel
   std::vector<std::uint64_t> sort_keys;  // (bound, id)
+  std::vector<std::int32_t> candidates;  // of the current voxel, from the Bvh walk
   std::vector<double> quick_bounds;      // per list entry: cubeTriangleQuickBound, before the full bound
 };
 
@@ -369,10 +370,10 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
         return spare * spare > half_diagonal * half_diagonal * chord_squared * (1 + 3e-9);
       };
 
-      std::uint32_t count = 0;
-      scratch.quick_bounds.clear();
       // Triangles that may belong: a Bvh walk that skips nodes whose box is farther than U from the voxel's
       // cube (then dmin > U for all below), or that the cone test excludes as a whole.
+      std::vector<std::int32_t>& candidates = scratch.candidates;
+      candidates.clear();
       const auto& nodes = geometry.bvh.nodes;
       int stack[128];  // see detail::nearestTriangle for why this is enough
       int top = 0;
@@ -383,89 +384,118 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
             (node.box.min - center).cwiseMax(center - node.box.max).cwiseMax(0.0);
         if ((outside.array() - half).max(0.0).matrix().squaredNorm() > upper_bound_squared) continue;
         if (cone_usable && coneExcludes(outside.norm(), node.center, node.radius)) continue;
-        if (!node.isLeaf()) {
+        if (node.isLeaf()) {
+          candidates.insert(candidates.end(), geometry.bvh.triangle_ids.begin() + node.first,
+                            geometry.bvh.triangle_ids.begin() + node.first + node.count);
+        } else {
           stack[top++] = node.first;
           stack[top++] = node.first + 1;
-          continue;
-        }
-        for (int n = node.first; n < node.first + node.count; ++n) {
-          const int t = geometry.bvh.triangle_ids[n];
-          const auto& c = geometry.corners[t];
-          Eigen::Vector3d closest;
-          const double d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
-          if (d_center - half_diagonal > upper_bound) continue;
-          double d_min = detail::cubeTriangleQuickBound(center, half, c[0], c[1], c[2], closest);
-          if (d_min > upper_bound) continue;
-          if (cone_usable && t != center_triangle) {
-            const Eigen::Vector4d& sphere_i = geometry.spheres[t];
-            if (coneExcludes(d_center, sphere_i.head<3>(), sphere_i[3])) continue;
-          }
-          // The full separating-axis bound comes after topology culling, for the entries that stay: it is
-          // the costly test and seldom excludes. Culling sees a few triangles too many, so it may keep more,
-          // never fewer (a witness it sees as listed or as missing is good either way).
-          out.ids.push_back(t);
-          out.bounds.push_back(0);
-          scratch.quick_bounds.push_back(d_min);
-          ++count;
         }
       }
-      std::int32_t* list = out.ids.data() + (out.ids.size() - count);
-      std::uint8_t* bounds = out.bounds.data() + (out.bounds.size() - count);
-      if (options.topology_culling && count > 1) {
-        // Paper section 3.6, in a form that is provably conservative on any mesh: triangle i may leave the
-        // list when every point of the voxel has its closest point of i on an edge shared with a triangle j
-        // (its witness), so that j is at least as close everywhere. It does leave when some witness stays,
-        // is missing from the list, or has itself left through such a chain. Why that is safe: a triangle
-        // missing from the list is strictly beaten everywhere by another, so for any point p, following
-        // witnesses from one of p's nearest triangles never increases the distance and ends at a triangle
-        // that stays (a missing one would be strictly beaten, so not nearest). Witnesses that only lean on
-        // each other in a cycle all stay. The result is the least fixed point of a monotone rule, so it
-        // does not depend on the order of the list.
-        if (scratch.marks.empty() || scratch.last_mark > std::numeric_limits<std::uint32_t>::max() - 3) {
-          scratch.marks.assign(geometry.mesh.triangles.size(), 0);
-          scratch.last_mark = 0;
-        }
-        const std::uint32_t stays = (scratch.last_mark += 3) - 2;  // listed, not droppable
-        const std::uint32_t undecided = stays + 1, left = stays + 2;  // droppable: not yet shown / shown
-        scratch.edge_masks.assign(count, 0);
-        bool any_droppable = false;
-        for (std::uint32_t n = 0; n < count; ++n) {
-          const auto& regions = topology.edges[list[n]];
-          for (int e = 0; e < 3; ++e) {
-            if (regions[e].usable && voxelInEdgeRegion(regions[e], center)) scratch.edge_masks[n] |= 1 << e;
-          }
-          scratch.marks[list[n]] = scratch.edge_masks[n] ? undecided : stays;
-          any_droppable = any_droppable || scratch.edge_masks[n];
-        }
-        for (bool changed = any_droppable; changed;) {
+      const std::uint32_t candidate_count = static_cast<std::uint32_t>(candidates.size());
+
+      // Paper section 3.6, in a form that is provably conservative on any mesh: triangle i may leave the
+      // list when every point of the voxel has its closest point of i on an edge shared with a triangle j
+      // (its witness), so that j is at least as close everywhere. It does leave when some witness stays,
+      // is missing from the list, or has itself left through such a chain. Why that is safe: a triangle
+      // missing from the list is strictly beaten everywhere by another, so for any point p, following
+      // witnesses from one of p's nearest triangles never increases the distance and ends at a triangle
+      // that stays (a missing one would be strictly beaten, so not nearest). Witnesses that only lean on
+      // each other in a cycle all stay. The result is the least fixed point of a monotone rule, so it
+      // does not depend on the order of the list.
+      //
+      // It runs before the exclusion tests, with every candidate counted as listed, and again after them,
+      // with the excluded ones counted as missing: the first round is the cheap one and removes most of the
+      // triangles that the costly tests would otherwise examine, and since it only drops what the rule
+      // drops, the second round reaches the same least fixed point as a single round after the tests.
+      const bool culling = options.topology_culling && candidate_count > 1;
+      std::uint32_t missing = 0, stays = 0, undecided = 0, left = 0;
+      auto propagate = [&](std::uint32_t size) {  // over candidates[0, size)
+        for (bool changed = true; changed;) {
           changed = false;
-          for (std::uint32_t n = 0; n < count; ++n) {
-            if (scratch.marks[list[n]] != undecided) continue;
+          for (std::uint32_t n = 0; n < size; ++n) {
+            if (scratch.marks[candidates[n]] != undecided) continue;
             bool drop = false;
             for (int e = 0; e < 3 && !drop; ++e) {
               if (!(scratch.edge_masks[n] >> e & 1)) continue;
-              const EdgeRegion& region = topology.edges[list[n]][e];
+              const EdgeRegion& region = topology.edges[candidates[n]][e];
               for (int m = region.neighbours_begin; m < region.neighbours_end && !drop; ++m) {
                 drop = scratch.marks[topology.edge_neighbours[m]] != undecided;
               }
             }
             if (drop) {
-              scratch.marks[list[n]] = left;
+              scratch.marks[candidates[n]] = left;
               changed = true;
             }
           }
         }
-        std::uint32_t kept = 0;
-        for (std::uint32_t n = 0; n < count; ++n) {
-          if (scratch.marks[list[n]] != left) {
-            scratch.quick_bounds[kept] = scratch.quick_bounds[n];
-            list[kept++] = list[n];
-          }
+      };
+      bool any_droppable = false;
+      if (culling) {
+        if (scratch.marks.empty() || scratch.last_mark > std::numeric_limits<std::uint32_t>::max() - 4) {
+          scratch.marks.assign(geometry.mesh.triangles.size(), 0);
+          scratch.last_mark = 0;
         }
-        out.ids.resize(out.ids.size() - (count - kept));
-        out.bounds.resize(out.bounds.size() - (count - kept));
-        count = kept;
+        missing = (scratch.last_mark += 4) - 3;  // excluded by a test; any older mark: never a candidate
+        stays = missing + 1;                    // listed, not droppable
+        undecided = missing + 2;                // droppable, not yet shown to leave
+        left = missing + 3;                     // shown to leave
+        scratch.edge_masks.assign(candidate_count, 0);
+        for (std::uint32_t n = 0; n < candidate_count; ++n) {
+          const auto& regions = topology.edges[candidates[n]];
+          for (int e = 0; e < 3; ++e) {
+            if (regions[e].usable && voxelInEdgeRegion(regions[e], center)) scratch.edge_masks[n] |= 1 << e;
+          }
+          scratch.marks[candidates[n]] = scratch.edge_masks[n] ? undecided : stays;
+          any_droppable = any_droppable || scratch.edge_masks[n];
+        }
+        if (any_droppable) propagate(candidate_count);
       }
+
+      // The exclusion tests, on what the first round kept. The full separating-axis bound comes after
+      // culling, for the entries that stay: it is the costly test and seldom excludes, so culling sees
+      // those few as listed, which may keep more, never fewer (a witness that is listed or missing is good
+      // either way).
+      std::uint32_t count = 0;
+      scratch.quick_bounds.clear();
+      bool any_excluded = false;
+      for (std::uint32_t n = 0; n < candidate_count; ++n) {
+        const int t = candidates[n];
+        if (culling && scratch.marks[t] == left) continue;
+        const auto& c = geometry.corners[t];
+        Eigen::Vector3d closest;
+        const double d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
+        bool excluded = d_center - half_diagonal > upper_bound;
+        double d_min = 0;
+        if (!excluded) {
+          d_min = detail::cubeTriangleQuickBound(center, half, c[0], c[1], c[2], closest);
+          excluded = d_min > upper_bound;
+        }
+        if (!excluded && cone_usable && t != center_triangle) {
+          const Eigen::Vector4d& sphere_i = geometry.spheres[t];
+          excluded = coneExcludes(d_center, sphere_i.head<3>(), sphere_i[3]);
+        }
+        if (excluded) {
+          if (culling) scratch.marks[t] = missing;
+          any_excluded = true;
+          continue;
+        }
+        candidates[count] = t;  // compacted in place: n >= count
+        if (culling) scratch.edge_masks[count] = scratch.edge_masks[n];
+        scratch.quick_bounds.push_back(d_min);
+        ++count;
+      }
+      if (culling && any_droppable && any_excluded) propagate(count);
+      std::uint32_t kept = 0;
+      for (std::uint32_t n = 0; n < count; ++n) {
+        if (culling && scratch.marks[candidates[n]] == left) continue;
+        out.ids.push_back(candidates[n]);
+        out.bounds.push_back(0);
+        scratch.quick_bounds[kept++] = scratch.quick_bounds[n];
+      }
+      count = kept;
+      std::int32_t* list = out.ids.data() + (out.ids.size() - count);
+      std::uint8_t* bounds = out.bounds.data() + (out.bounds.size() - count);
       // The lower bound of the voxel: the closest triangle to any of its points is listed, so the smallest
       // listed dmin bounds the voxel-mesh distance from below.
       double lower = kInfinity;

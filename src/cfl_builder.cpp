@@ -29,9 +29,9 @@ int workerCount(int requested) {
 }
 
 // Runs task(item, worker) for item in [0, count) on `threads` workers numbered from 0, the calling thread
-// being worker 0, pulling
-// items from a shared counter so that uneven rows balance out. Only the calling thread reports progress,
-// between its own items, so the callback never runs elsewhere; with one thread nothing is spawned.
+// being worker 0, pulling items from a shared counter so that uneven rows balance out. Only the calling
+// thread reports progress, between its own items, so the callback never runs elsewhere; with one thread
+// nothing is spawned.
 template <typename Task>
 void parallelFor(std::int64_t count, int threads, const std::function<void(double)>& progress, double progress_begin,
                  double progress_end, Task task) {
@@ -280,10 +280,11 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
     }
   });
 
-  // 2. The lists. For voxel V with center c and half edge e, U = min_k dmax(V, k) over the corners' nearest
-  //    triangles is an upper bound on the distance from any point of V to the mesh. Triangle i belongs to the
-  //    list unless dmin(V, i) > U; since dmin(V, i) >= dist(c, i) - sqrt(3) e, only triangles within
-  //    U + sqrt(3) e of c can belong, and a Bvh ball query finds them.
+  // 2. The lists. For voxel V with center c, U = min_k dmax(V, k) over the nearest triangles of the corners
+  //    and of c is an upper bound on the distance from any point of V to the mesh. Triangle i belongs to the
+  //    list unless dmin(V, i) > U (a Bvh node whose box is farther than U from V holds none that belong),
+  //    unless the cone test shows c's nearest triangle strictly closer everywhere in V, and unless
+  //    topology culling removes it.
   const int rows = grid.dims[1] * grid.dims[2];
   std::vector<RowLists> row_lists(rows);
   const double half_diagonal = std::sqrt(3.0) * half;

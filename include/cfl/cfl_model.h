@@ -24,10 +24,13 @@ struct BuildOptions {
   double padding = 2.0;
   /// Topology culling (paper section 3.6, made provably conservative): triangle i leaves a voxel's list
   /// when, for every point of the voxel, i's closest point lies on an edge (shared vertex indices) that a
-  /// triangle j also has and j stays in the list, so j is at least as close. The paper's plane through
-  /// the edge along the mean normal is not conservative for finite or concave triangles; these half-spaces
-  /// are, on any mesh (open, non-manifold, unoriented), so it is on by default. On the bunny at resolution
-  /// 30 it shortens the average list from 85.0 to 61.8 triangles for about 5% more build time.
+  /// triangle j also has, so j is at least as close, and j stays in the list, is missing from it (strictly
+  /// beaten), or has itself left this way. Following such a chain from any closest triangle never gets
+  /// farther and ends at a listed one; triangles that only witness each other in a loop all stay, and the
+  /// result does not depend on list order. The paper's plane through the edge along the mean normal is not
+  /// conservative for finite or concave triangles; these half-spaces are, on any mesh (open, non-manifold,
+  /// unoriented), so it is on by default. On the bunny at resolution 30 it shortens the average list from
+  /// 85.01 to 41.25 triangles, and the build is no slower (0.35-0.37 s against 0.37-0.39 s, 2 threads).
   bool topology_culling = true;
   /// Worker threads for the build; 0 means every hardware thread. The result does not depend on it.
   int threads = 0;

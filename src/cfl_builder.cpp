@@ -324,6 +324,18 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       center_squared = std::nextafter(center_squared * (1 + 1e-12), kInfinity);
       int center_triangle = -1;
       detail::nearestTriangle(geometry, center, center_squared, center_triangle);
+      if (center_triangle < 0) {
+        // Nothing was found below the corners' bound: their distances were not finite (coordinates near
+        // the limits of double). Any triangle serves as U's candidate and the cone's reference, as long as
+        // center_squared is its own distance.
+        center_squared = kInfinity;
+        detail::nearestTriangle(geometry, center, center_squared, center_triangle);
+        if (center_triangle < 0) {
+          center_triangle = upper_candidates[0];
+          const auto& c = geometry.corners[center_triangle];
+          center_squared = pointTriangleSquaredDistance(center, c[0], c[1], c[2]);
+        }
+      }
       if (std::find(upper_candidates, upper_candidates + upper_candidate_count, center_triangle) ==
           upper_candidates + upper_candidate_count) {
         upper_candidates[upper_candidate_count++] = center_triangle;

@@ -127,32 +127,6 @@ class Search {
     out.offset = out.normal.dot(out.corners[0]);
   }
 
-  // A cheap lower bound on the distance between triangle a of A and `tb`: the largest of the bounding
-  // spheres' gap and the gaps between each triangle's plane and the other's corners. At short range the
-  // planes carry the bound: the spheres are bigger than the gap.
-  double pairLowerBound(int a, const PreparedTriangle& tb) const {
-    const auto& c = mesh_a_.corners[a];
-    const Eigen::Vector4d& sphere = mesh_a_.spheres[a];
-    // Projection on the axis between the two spheres' centers: never looser than the spheres' gap, and
-    // far apart nearly exact.
-    const Eigen::Vector3d axis = tb.center - sphere.head<3>();
-    const double axis_length = axis.norm();
-    double bound = axis_length - sphere[3] - tb.radius;
-    if (bound > -tb.radius && axis_length > 0) {
-      const double a_max = std::max({axis.dot(c[0]), axis.dot(c[1]), axis.dot(c[2])});
-      const double b_min = std::min({axis.dot(tb.corners[0]), axis.dot(tb.corners[1]), axis.dot(tb.corners[2])});
-      bound = std::max(bound, (b_min - a_max) / axis_length);
-    }
-    const Eigen::Vector4d& plane = mesh_a_.planes[a];
-    const Eigen::Vector3d normal_a = plane.head<3>();
-    const double s0 = normal_a.dot(tb.corners[0]) - plane[3], s1 = normal_a.dot(tb.corners[1]) - plane[3],
-                 s2 = normal_a.dot(tb.corners[2]) - plane[3];
-    bound = std::max(bound, std::max(std::min({s0, s1, s2}), -std::max({s0, s1, s2})));
-    const double t0 = tb.normal.dot(c[0]) - tb.offset, t1 = tb.normal.dot(c[1]) - tb.offset,
-                 t2 = tb.normal.dot(c[2]) - tb.offset;
-    return std::max(bound, std::max(std::min({t0, t1, t2}), -std::max({t0, t1, t2})));
-  }
-
   // Exact distance between triangle a of A and triangle b of B (already in A's frame).
   void testPair(int a, const PreparedTriangle& tb) {
     ++counters_.triangle_pairs;
@@ -168,8 +142,11 @@ class Search {
     }
   }
 
-  // Whether triangle a of A may be closer to `tb` than `threshold`: the tests of pairLowerBound, cheapest
-  // first, each returning as soon as it decides.
+  // Whether triangle a of A may be closer to `tb` than `threshold`, by cheap lower bounds taken cheapest
+  // first, each returning as soon as it decides: the bounding spheres' gap (squared, no root), the gaps
+  // between each triangle's plane and the other's corners (at short range the planes carry the bound: the
+  // spheres are bigger than the gap), and the projection on the axis between the spheres' centers (never
+  // looser than the spheres' gap, and far apart nearly exact).
   bool mayBeCloser(int a, const PreparedTriangle& tb, double threshold) const {
     const Eigen::Vector4d& sphere = mesh_a_.spheres[a];
     const Eigen::Vector3d axis = tb.center - sphere.head<3>();
@@ -310,12 +287,13 @@ class Search {
     // A's axes: the box of A reaches half_a[i], B's box reaches sum_j cosines(i, j) half_b[j].
     const Eigen::Vector3d gap_a = offset.cwiseAbs() - half_a - cosines * half_b;
     // B's axes.
-    const Eigen::Vector3d gap_b = (axes_b.transpose() * offset).cwiseAbs() - half_b - cosines.transpose() * half_a;
+    const Eigen::Vector3d offset_in_b = axes_b.transpose() * offset;
+    const Eigen::Vector3d gap_b = offset_in_b.cwiseAbs() - half_b - cosines.transpose() * half_a;
     bound = std::max({bound, gap_a.maxCoeff(), gap_b.maxCoeff()});
     const double length = offset.norm();
     if (length > 0) {
       const double reach_a = half_a.dot(offset.cwiseAbs());
-      const double reach_b = half_b.dot((axes_b.transpose() * offset).cwiseAbs());
+      const double reach_b = half_b.dot(offset_in_b.cwiseAbs());
       bound = std::max(bound, (length * length - reach_a - reach_b) / length);
     }
     return bound;

@@ -12,10 +12,7 @@
 namespace cfl {
 namespace {
 
-struct NamedMesh {
-  std::string name;
-  TriangleMesh mesh;
-};
+using test::NamedMesh;
 
 std::vector<NamedMesh> testMeshes() {
   return {

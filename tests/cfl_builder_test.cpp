@@ -18,10 +18,7 @@
 namespace cfl {
 namespace {
 
-struct NamedMesh {
-  std::string name;
-  TriangleMesh mesh;
-};
+using test::NamedMesh;
 
 // Small enough for brute force at thousands of points, and covering closed, open, soup and ugly input.
 std::vector<NamedMesh> testMeshes() {

@@ -19,6 +19,12 @@ namespace cfl::test {
 
 using Rng = std::mt19937_64;
 
+/// A mesh with the name that test failures print.
+struct NamedMesh {
+  std::string name;
+  TriangleMesh mesh;
+};
+
 /// A closed torus around the z axis: `major_segments` x `minor_segments` quads, two triangles each.
 TriangleMesh makeTorus(double major_radius = 1.0, double minor_radius = 0.35, int major_segments = 24,
                        int minor_segments = 12);

@@ -211,7 +211,8 @@ int automaticResolution(const TriangleMesh& mesh, double padding) {
   const double longest = boundingBox(mesh).size().maxCoeff() * std::max(1.0, padding);
   if (!(mean_edge > 0)) return 8;
   const double resolution = longest / (2.0 * mean_edge);
-  return static_cast<int>(std::clamp(std::round(resolution), 8.0, 64.0));
+  const double finest = std::clamp(std::round(32 * padding), 64.0, 96.0);
+  return static_cast<int>(std::clamp(std::round(resolution), 8.0, finest));
 }
 
 CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {

@@ -122,9 +122,9 @@ TEST(BadInput, ResolutionTooLargeForMemorySaysHowManyBytesItNeeds) {
 TEST(BadInput, ResolutionZeroChoosesTheAutomaticResolution) {
   const TriangleMesh mesh = test::makeTorus(1.0, 0.35, 10, 5);
   const CflModel model = buildCflModel(mesh, withResolution(0));
-  EXPECT_EQ(model.statistics.resolution, automaticResolution(mesh, 2.0));
+  EXPECT_EQ(model.statistics.resolution, automaticResolution(mesh, BuildOptions{}.padding));
   EXPECT_GE(model.statistics.resolution, 8);
-  EXPECT_LE(model.statistics.resolution, 64);
+  EXPECT_LE(model.statistics.resolution, 96);
 }
 
 }  // namespace

@@ -305,14 +305,28 @@ TEST(CflBuilder, GridCoversThePaddedBoxWithTheRequestedResolution) {
 
 TEST(CflBuilder, AutomaticResolutionIsUsedWhenZeroAndStaysInRange) {
   for (const NamedMesh& named : testMeshes()) {
-    const int automatic = automaticResolution(named.mesh, 2.0);
-    EXPECT_GE(automatic, 8) << named.name;
-    EXPECT_LE(automatic, 64) << named.name;
+    for (double padding : {1.0, 2.0, 3.0, 10.0}) {
+      const int automatic = automaticResolution(named.mesh, padding);
+      EXPECT_GE(automatic, 8) << named.name;
+      EXPECT_LE(automatic, padding <= 2 ? 64 : 96) << named.name << " padding " << padding;
+    }
   }
   const TriangleMesh torus = test::makeTorus(1.0, 0.35, 16, 8);
   const CflModel model = buildCflModel(torus, options(0));
-  EXPECT_EQ(model.statistics.resolution, automaticResolution(torus, 2.0));
+  EXPECT_EQ(model.statistics.resolution, automaticResolution(torus, BuildOptions{}.padding));
   EXPECT_EQ(*std::max_element(model.grid.dims.begin(), model.grid.dims.end()), model.statistics.resolution);
+}
+
+// A larger padding reaches farther out without coarsening the voxels near the mesh (unless capped): the
+// short-range speed must not depend on it.
+TEST(CflBuilder, AutomaticVoxelSizeDoesNotDependOnThePaddingBelowTheCap) {
+  const TriangleMesh torus = test::makeTorus(1.0, 0.35, 16, 8);
+  const double longest = boundingBox(torus).size().maxCoeff();
+  const int at_two = automaticResolution(torus, 2.0), at_three = automaticResolution(torus, 3.0);
+  ASSERT_LT(at_three, 96);
+  const double voxel_two = 2.0 * longest / at_two, voxel_three = 3.0 * longest / at_three;
+  // Each resolution is rounded to an integer: the voxel sizes agree to within that rounding.
+  EXPECT_NEAR(voxel_three, voxel_two, voxel_two * (1.0 / at_two + 1.0 / at_three));
 }
 
 // Paper Table 1: finer voxels hold fewer candidate triangles.

@@ -24,7 +24,7 @@ statistics. Progress goes to standard error: a bar on a terminal, plain lines ot
 
   -o, --output OUT.cfl  also save the model (load it with 'cfl info', 'cfl distance' or cfl::loadCflModel)
   --resolution N        voxels along the longest axis; 0 (default) picks one from the mesh
-  --padding P           the grid covers the bounding box scaled by P about its center (default 2, >= 1)
+  --padding P           the grid covers the bounding box scaled by P about its center (default 3, >= 1)
   --threads T           build threads; 0 (default) uses every hardware thread
 )";
 

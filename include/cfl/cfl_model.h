@@ -19,9 +19,12 @@ struct BuildOptions {
   /// Voxels along the grid's longest axis. 0 picks one automatically (see automaticResolution).
   /// Cost grows with its cube: finer grids give shorter lists (faster queries) for more build time and memory.
   int resolution = 0;
-  /// The grid covers the mesh's bounding box scaled by this factor about its center (paper: 2). Must be
-  /// >= 1. Parts of the other mesh outside the grid are still answered exactly, through the mesh's Bvh.
-  double padding = 2.0;
+  /// The grid covers the mesh's bounding box scaled by this factor about its center. Must be >= 1. Parts
+  /// of the other mesh outside the grid are still answered exactly, through the two meshes' Bvhs, but at
+  /// about OBBRSS's speed; inside, the grid's distance field prunes in O(1). The paper uses 2; 3 keeps a
+  /// mesh half a diagonal away inside the grid, which made that band about 3x faster on the bunny (mean
+  /// 297 -> 95 us) for 1.6x the memory (5.7 -> 9.2 MB at the same voxel size).
+  double padding = 3.0;
   /// Topology culling (paper section 3.6, made provably conservative): triangle i leaves a voxel's list
   /// when, for every point of the voxel, i's closest point lies on an edge (shared vertex indices) that a
   /// triangle j also has, so j is at least as close, and j stays in the list, is missing from it (strictly
@@ -54,7 +57,7 @@ struct BuildStatistics {
 struct CflModel {
   MeshModel geometry;  ///< The mesh, its corners and its Bvh (frame M).
   VoxelGrid grid;      ///< Frame M.
-  double padding = 2.0;
+  double padding = 3.0;
   bool topology_culling = false;
 
   /// CSR storage of the lists: voxel v's CFL is
@@ -88,8 +91,9 @@ struct CflModel {
   const std::uint8_t* listBoundsBegin(std::int64_t v) const { return list_entry_bounds.data() + list_offsets[voxel_list[v]]; }
 };
 
-/// The resolution used when BuildOptions::resolution is 0: about two mean triangle edge lengths per voxel
-/// near the mesh, clamped to [8, 64] so that build time stays in seconds. See the README for the
+/// The resolution used when BuildOptions::resolution is 0: about two mean triangle edge lengths per voxel,
+/// clamped to [8, 32 * padding] (the upper end itself kept within [64, 96]) so that build time stays in
+/// seconds while the voxel size near the mesh does not depend on the padding. See the README for the
 /// measurements behind the rule.
 int automaticResolution(const TriangleMesh& mesh, double padding);
 

@@ -22,8 +22,8 @@ struct BuildOptions {
   /// The grid covers the mesh's bounding box scaled by this factor about its center. Must be >= 1. Parts
   /// of the other mesh outside the grid are still answered exactly, through the two meshes' Bvhs, but at
   /// about OBBRSS's speed; inside, the grid's distance field prunes in O(1). The paper uses 2; 3 keeps a
-  /// mesh half a diagonal away inside the grid, which made that band about 3x faster on the bunny (mean
-  /// 297 -> 95 us) for 1.6x the memory (5.7 -> 9.2 MB at the same voxel size).
+  /// mesh half a diagonal away inside the grid: in `cfl bench` on the bunny that band went from 1.0x to
+  /// 3.0x OBBRSS (CFL median 208.8 -> 77.4 us) for 1.6x the memory (5.4 -> 8.7 MB, same voxel size).
   double padding = 3.0;
   /// Topology culling (paper section 3.6, made provably conservative): triangle i leaves a voxel's list
   /// when, for every point of the voxel, i's closest point lies on an edge (shared vertex indices) that a

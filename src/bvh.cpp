@@ -39,20 +39,16 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
       centroid_box.extend(centroids[t]);
     }
     // The sphere is centered on the box but sized by the actual vertices: tighter than the box's
-    // circumsphere, and the query's lower bounds scale with it.
+    // circumsphere, and the query's lower bounds scale with it. The same pass gathers the scatter matrix
+    // of the oriented box: principal axes of the vertices (duplicates counted, which is harmless: any
+    // orthonormal axes give a true box, these just tend to give a tight one).
     const Eigen::Vector3d center = box.center();
     double radius_squared = 0;
-    for (int i = range.begin; i < range.end; ++i) {
-      for (int index : mesh.triangles[bvh.triangle_ids[i]]) {
-        radius_squared = std::max(radius_squared, (mesh.vertices[index] - center).squaredNorm());
-      }
-    }
-    // The oriented box: principal axes of the vertices (duplicates counted, which is harmless: any
-    // orthonormal axes give a true box, these just tend to give a tight one).
     Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
     for (int i = range.begin; i < range.end; ++i) {
       for (int index : mesh.triangles[bvh.triangle_ids[i]]) {
         const Eigen::Vector3d offset = mesh.vertices[index] - center;
+        radius_squared = std::max(radius_squared, offset.squaredNorm());
         scatter += offset * offset.transpose();
       }
     }

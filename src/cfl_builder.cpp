@@ -500,34 +500,24 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
         ++count;
       }
       if (culling && any_droppable && any_excluded) propagate(count);
-      std::uint32_t kept = 0;
-      for (std::uint32_t n = 0; n < count; ++n) {
-        if (culling && scratch.marks[candidates[n]] == left) continue;
-        out.ids.push_back(candidates[n]);
-        out.bounds.push_back(0);
-        scratch.quick_bounds[kept++] = scratch.quick_bounds[n];
-      }
-      count = kept;
-      std::int32_t* list = out.ids.data() + (out.ids.size() - count);
-      std::uint8_t* bounds = out.bounds.data() + (out.bounds.size() - count);
-      // The lower bound of the voxel: the closest triangle to any of its points is listed, so the smallest
-      // listed dmin bounds the voxel-mesh distance from below.
+      // What culling kept, through the full bound. The lower bound of the voxel: the closest triangle to any
+      // of its points is listed, so the smallest listed dmin bounds the voxel-mesh distance from below.
+      const std::size_t list_begin = out.ids.size();
       double lower = kInfinity;
-      {
-        std::uint32_t kept = 0;
-        for (std::uint32_t n = 0; n < count; ++n) {
-          const auto& c = geometry.corners[list[n]];
-          const double d_min =
-              detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], scratch.quick_bounds[n]);
-          if (d_min > upper_bound) continue;
-          lower = std::min(lower, d_min);
-          bounds[kept] = quantizeEntryBound(d_min, bound_unit);
-          list[kept++] = list[n];
-        }
-        out.ids.resize(out.ids.size() - (count - kept));
-        out.bounds.resize(out.bounds.size() - (count - kept));
-        count = kept;
+      for (std::uint32_t n = 0; n < count; ++n) {
+        const int t = candidates[n];
+        if (culling && scratch.marks[t] == left) continue;
+        const auto& c = geometry.corners[t];
+        const double d_min =
+            detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], scratch.quick_bounds[n]);
+        if (d_min > upper_bound) continue;
+        lower = std::min(lower, d_min);
+        out.ids.push_back(t);
+        out.bounds.push_back(quantizeEntryBound(d_min, bound_unit));
       }
+      count = static_cast<std::uint32_t>(out.ids.size() - list_begin);
+      std::int32_t* list = out.ids.data() + list_begin;
+      std::uint8_t* bounds = out.bounds.data() + list_begin;
       // The query scans a list in this order and stops at the first entry whose bound reaches its best
       // distance so far.
       scratch.sort_keys.clear();

@@ -87,6 +87,8 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
       node.obb_center = axes * middle;
       const double slack = 1e-12 * (center.norm() + node.radius) + 1e-300;
       node.obb_half = (0.5 * (high - low)).array() + slack;
+      node.subtree_first = range.begin;
+      node.subtree_count = range.end - range.begin;
     }
     const int count = range.end - range.begin;
     if (count <= max_leaf_size) {

@@ -1,5 +1,5 @@
 // Structural invariants of buildBvh on several meshes and leaf sizes: the tree is a partition of the
-// triangles, and every node's box and sphere bound everything below it.
+// triangles, every node's box and sphere bound everything below it, and its subtree range lists exactly that.
 
 #include "cfl/bvh.h"
 #include "support/test_meshes.h"
@@ -118,6 +118,13 @@ void checkInvariants(const TriangleMesh& mesh, const Bvh& bvh, int max_leaf_size
       below[*it] = below[node.first];
       below[*it].insert(below[*it].end(), below[node.first + 1].begin(), below[node.first + 1].end());
     }
+    // The subtree range is exactly the triangles below (a query tests small subtrees through it alone).
+    ASSERT_GE(node.subtree_first, 0) << "node " << *it;
+    ASSERT_LE(node.subtree_first + node.subtree_count, n) << "node " << *it;
+    EXPECT_EQ(std::vector<int>(bvh.triangle_ids.begin() + node.subtree_first,
+                               bvh.triangle_ids.begin() + node.subtree_first + node.subtree_count),
+              below[*it])
+        << "node " << *it << " subtree range [" << node.subtree_first << ", +" << node.subtree_count << ")";
     for (int t : below[*it]) {
       for (int k = 0; k < 3; ++k) {
         const Eigen::Vector3d& v = mesh.vertices[mesh.triangles[t][k]];

@@ -24,6 +24,10 @@ struct BvhNode {
   Eigen::Vector3d obb_half = Eigen::Vector3d::Zero();
   std::int32_t first = 0;
   std::int32_t count = 0;
+  /// Every triangle below the node, leaf or not: Bvh::triangle_ids[subtree_first, subtree_first +
+  /// subtree_count). Lets a query test two small subtrees pair by pair instead of splitting them further.
+  std::int32_t subtree_first = 0;
+  std::int32_t subtree_count = 0;
 
   bool isLeaf() const { return count > 0; }
 };

@@ -20,10 +20,11 @@ struct BuildOptions {
   /// Cost grows with its cube: finer grids give shorter lists (faster queries) for more build time and memory.
   int resolution = 0;
   /// The grid covers the mesh's bounding box scaled by this factor about its center. Must be >= 1. Parts
-  /// of the other mesh outside the grid are still answered exactly, through the two meshes' Bvhs, but at
-  /// about OBBRSS's speed; inside, the grid's distance field prunes in O(1). The paper uses 2; 3 keeps a
-  /// mesh half a diagonal away inside the grid: in `cfl bench` on the bunny that band went from 1.0x to
-  /// 3.0x OBBRSS (CFL median 208.8 -> 77.4 us) for 1.6x the memory (5.4 -> 8.7 MB, same voxel size).
+  /// of the other mesh outside the grid are still answered exactly, through the two meshes' Bvhs, by node
+  /// bounds that cost more than inside, where the grid's distance field prunes in O(1). The paper uses 2;
+  /// 3 keeps a mesh half a diagonal away inside the grid: in `cfl bench` on the bunny that band went from
+  /// 1.0x to 3.0x OBBRSS (CFL median 208.8 -> 77.4 us) for 1.6x the memory (5.4 -> 8.7 MB, same voxel
+  /// size).
   double padding = 3.0;
   /// Topology culling (paper section 3.6, made provably conservative): triangle i leaves a voxel's list
   /// when, for every point of the voxel, i's closest point lies on an edge (shared vertex indices) that a

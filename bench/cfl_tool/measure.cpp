@@ -4,8 +4,10 @@
 
 #include <time.h>
 
+#include <algorithm>
 #include <chrono>
 #include <numeric>
+#include <random>
 
 namespace cfl::tool {
 
@@ -33,11 +35,16 @@ std::vector<MethodSamples> timeIndexedMethods(std::size_t count, const std::vect
     method.query(count - 1);
   }
   std::vector<std::vector<double>> times(m);
+  // A fresh random order for every pose and repeat. A rotating order would always run the same method
+  // right after the same other one, and a method that follows FCL finds the caches full of FCL's data.
+  std::vector<std::size_t> order(m);
+  std::iota(order.begin(), order.end(), std::size_t(0));
+  std::mt19937 rng(12345);
   for (std::size_t i = 0; i < count; ++i) {
     for (auto& t : times) t.clear();
     for (int r = 0; r < repeats; ++r) {
-      for (std::size_t k = 0; k < m; ++k) {
-        const std::size_t j = (i + std::size_t(r) + k) % m;
+      std::shuffle(order.begin(), order.end(), rng);
+      for (std::size_t j : order) {
         const double start = nowMicros(clock);
         const double d = methods[j].query(i);
         times[j].push_back(nowMicros(clock) - start);

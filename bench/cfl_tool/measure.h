@@ -29,9 +29,10 @@ struct MethodSamples {
 /// an idle machine the two agree.
 enum class Clock { kWall, kThreadCpu };
 
-/// Times every method on every pose `repeats` times. Methods are interleaved pose by pose and their order
-/// rotates with the pose and the repeat, so drifts in clock speed, cache state or machine load hit all of
-/// them alike; every method first runs twice untimed to warm caches. One query per sample.
+/// Times every method on every pose `repeats` times. Methods are interleaved pose by pose, in a random
+/// order drawn afresh for every pose and repeat (fixed seed), so drifts in clock speed, cache state or
+/// machine load hit all of them alike, and no method always follows the same other one; every method first
+/// runs twice untimed to warm caches. One query per sample.
 std::vector<MethodSamples> timeMethods(const std::vector<Eigen::Isometry3d>& poses,
                                        const std::vector<TimedMethod>& methods, int repeats,
                                        Clock clock = Clock::kWall);

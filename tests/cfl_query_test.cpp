@@ -12,6 +12,7 @@
 #include <climits>
 #include <cmath>
 #include <memory>
+#include <random>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -596,6 +597,133 @@ TEST(ComputeCollision, ContactsListEveryIntersectingPairWhenUnbounded) {
       }
     }
   }
+  EXPECT_EQ(failures.count(), 0);
+}
+
+// A smooth motion of B relative to A, both moving in the world: every frame B turns by `turn` radians
+// about a fixed axis through its center and moves by `step` (a fraction of A's diagonal) along a fixed
+// direction, while A turns slowly about its own center; `pull` > 0 aims the direction at A's center.
+std::vector<Pose> smoothMotion(const Shape& a, const Shape& b, const Pose& start, int frames, double step, double turn,
+                               bool pull, test::Rng& rng) {
+  std::normal_distribution<double> normal;
+  auto randomAxis = [&] { return Eigen::Vector3d(normal(rng), normal(rng), normal(rng)).normalized(); };
+  const Eigen::Vector3d axis_b = randomAxis(), axis_a = randomAxis();
+  Eigen::Vector3d direction = randomAxis();
+  if (pull) {
+    direction = (start.X_WA * a.model.bounds.center() - start.X_WB * b.model.bounds.center()).normalized();
+  }
+  std::vector<Pose> out{start};
+  for (int k = 1; k < frames; ++k) {
+    Pose next = out.back();
+    const Eigen::Vector3d center_b = next.X_WB * b.model.bounds.center();
+    next.X_WB.linear() = Eigen::AngleAxisd(turn, axis_b).toRotationMatrix() * next.X_WB.linear();
+    next.X_WB.translation() = center_b + step * a.diagonal * direction - next.X_WB.linear() * b.model.bounds.center();
+    const Eigen::Vector3d center_a = next.X_WA * a.model.bounds.center();
+    next.X_WA.linear() = Eigen::AngleAxisd(0.3 * turn, axis_a).toRotationMatrix() * next.X_WA.linear();
+    next.X_WA.translation() = center_a - next.X_WA.linear() * a.model.bounds.center();
+    next.kind = start.kind + ", frame " + std::to_string(k);
+    out.push_back(next);
+  }
+  return out;
+}
+
+// Runs `frames` through one cache and checks every answer against brute force. Returns the frames the
+// certificate answered.
+std::int64_t checkCachedFrames(const Shape& a, const Shape& b, const std::vector<Pose>& frames, DistanceCache& cache,
+                               const std::string& label, Failures& failures) {
+  const std::int64_t reused_before = cache.reused;
+  for (const Pose& pose : frames) {
+    const DistanceResult truth = bruteForceDistance(a.model, pose.X_WA, b.model, pose.X_WB);
+    checkResult(computeDistance(a.cfl, pose.X_WA, b.model, pose.X_WB, cache), truth, a, b, pose, label, failures);
+  }
+  return cache.reused - reused_before;
+}
+
+TEST(DistanceCache, SlowMotionMatchesBruteForceAndIsMostlyAnsweredByTheCertificate) {
+  test::Rng rng(101);
+  Failures failures;
+  std::int64_t frames = 0, reused = 0;
+  for (const PairCase& pair : kPairs) {
+    const Shape& a = shape(pair.a);
+    const Shape& b = shape(pair.b);
+    // Near and far, in and beyond A's grid.
+    for (double fraction : {0.005, 0.03, 0.2, 3.0}) {
+      DistanceCache cache;
+      // Slow enough for the certificate to last, long enough for the closest pair to change under it.
+      const std::vector<Pose> motion = smoothMotion(a, b, makePose(a, b, fraction, rng), 30, 1e-3, 1e-3, false, rng);
+      reused += checkCachedFrames(a, b, motion, cache, "slow motion", failures);
+      frames += static_cast<std::int64_t>(motion.size());
+      EXPECT_EQ(cache.reused + cache.searched, static_cast<std::int64_t>(motion.size()));
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+  // The first frame of each motion always searches; most of the others should not need to.
+  EXPECT_GE(reused, frames / 2) << reused << " of " << frames << " frames answered from the certificate";
+}
+
+TEST(DistanceCache, ApproachingThroughContactAndBackStaysExact) {
+  test::Rng rng(102);
+  Failures failures;
+  for (const PairCase& pair : kPairs) {
+    const Shape& a = shape(pair.a);
+    const Shape& b = shape(pair.b);
+    DistanceCache cache;
+    // In steps of 1% of the diagonal from 8% apart into overlap, then straight back out.
+    std::vector<Pose> motion = smoothMotion(a, b, makePose(a, b, 0.08, rng), 16, 0.01, 1e-3, true, rng);
+    std::vector<Pose> back(motion.rbegin(), motion.rend());
+    for (Pose& pose : back) pose.kind += ", returning";
+    motion.insert(motion.end(), back.begin(), back.end());
+    checkCachedFrames(a, b, motion, cache, "approach", failures);
+  }
+  EXPECT_EQ(failures.count(), 0);
+}
+
+TEST(DistanceCache, SuddenJumpsBetweenSlowStretchesStayExact) {
+  test::Rng rng(103);
+  Failures failures;
+  for (const PairCase& pair : kPairs) {
+    const Shape& a = shape(pair.a);
+    const Shape& b = shape(pair.b);
+    DistanceCache cache;
+    // Each stretch starts at a new random pose: the certificate of the last stretch must not be trusted.
+    for (double fraction : {0.02, 0.002, 0.1, 0.0, 0.01}) {
+      const std::vector<Pose> motion = smoothMotion(a, b, makePose(a, b, fraction, rng), 5, 2e-4, 2e-4, false, rng);
+      checkCachedFrames(a, b, motion, cache, "jump", failures);
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+}
+
+TEST(DistanceCache, OneCacheGivenOtherModelsOrApproximateOptionsStaysCorrect) {
+  test::Rng rng(104);
+  Failures failures;
+  const Shape& a = shape("knot");
+  const Shape& other_a = shape("torus");
+  const Shape& b = shape("messy");
+  const Shape& other_b = shape("soup");
+  DistanceCache cache;
+  const Pose start = makePose(a, b, 0.01, rng);
+  const std::vector<Pose> motion = smoothMotion(a, b, start, 8, 2e-4, 2e-4, false, rng);
+  for (std::size_t k = 0; k < motion.size(); ++k) {
+    // Alternate the partners at the same poses: a certificate of one pair says nothing about another.
+    const Shape& first = k % 3 == 1 ? other_a : a;
+    const Shape& second = k % 2 == 1 ? other_b : b;
+    const DistanceResult truth = bruteForceDistance(first.model, motion[k].X_WA, second.model, motion[k].X_WB);
+    checkResult(computeDistance(first.cfl, motion[k].X_WA, second.model, motion[k].X_WB, cache), truth, first, second,
+                motion[k], "alternating models", failures);
+  }
+  // With a tolerance, the cache steps aside and FCL's guarantee holds.
+  const std::int64_t reused = cache.reused;
+  DistanceOptions options;
+  options.rel_err = 0.2;
+  options.abs_err = a.diagonal;
+  for (const Pose& pose : motion) {
+    const DistanceResult truth = bruteForceDistance(a.model, pose.X_WA, b.model, pose.X_WB);
+    const DistanceResult r = computeDistance(a.cfl, pose.X_WA, b.model, pose.X_WB, cache, options);
+    EXPECT_LE(r.distance, truth.distance * (1 + options.rel_err) + 1e-9 * a.diagonal);
+    EXPECT_GE(r.distance, truth.distance - 1e-9 * a.diagonal);
+  }
+  EXPECT_EQ(cache.reused, reused);
   EXPECT_EQ(failures.count(), 0);
 }
 

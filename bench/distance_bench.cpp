@@ -8,9 +8,10 @@
 // statistics). Before timing, every CFL answer is checked against OBBRSS; a mismatch above 1e-9 of the
 // diagonal marks the benchmark as failed.
 //
-// moving/CFL_cold|CFL_warm|OBBRSS: the smooth orbit of `cfl bench --moving` (CFL_BENCH_FRAMES frames, 1000,
-// at CFL_BENCH_SEPARATION of the diagonal, 0.01); iterations step through the frames in order, and CFL_warm
-// passes the previous iteration's triangle pair as hint_triangle_a/b, as a simulator would.
+// moving/CFL_cold|CFL_warm|CFL_cached|OBBRSS: the smooth orbit of `cfl bench --moving` (CFL_BENCH_FRAMES
+// frames, 1000, at CFL_BENCH_SEPARATION of the diagonal, 0.01); iterations step through the frames in
+// order, CFL_warm passes the previous iteration's triangle pair as hint_triangle_a/b and CFL_cached one
+// DistanceCache, as a simulator would.
 
 #include "cfl/cfl_query.h"
 #include "cfl/mesh_io.h"
@@ -44,7 +45,7 @@ struct Scene {
 
 struct Moving {
   cfl::bench::MovingPoses motion;
-  double max_difference = 0;  // |CFL - OBBRSS| over the frames, cold and warm
+  double max_difference = 0;  // |CFL - OBBRSS| over the frames, cold, warm and cached
 };
 
 struct Band {
@@ -93,9 +94,12 @@ void runMoving(benchmark::State& state, const Scene& scene, const Moving& moving
   const auto& poses = moving.motion.poses;
   std::size_t i = 0;
   cfl::DistanceOptions hint;
+  cfl::DistanceCache cache;
   for (auto _ : state) {
     if (method == "OBBRSS") {
       benchmark::DoNotOptimize(cfl::bench::fclDistance(*scene.obbrss_a, kIdentity, *scene.obbrss_b, poses[i]).distance);
+    } else if (method == "CFL_cached") {
+      benchmark::DoNotOptimize(cfl::computeDistance(scene.cfl_a, kIdentity, scene.model_b, poses[i], cache).distance);
     } else {
       const cfl::DistanceResult r = cfl::computeDistance(scene.cfl_a, kIdentity, scene.model_b, poses[i], hint);
       benchmark::DoNotOptimize(r.distance);
@@ -107,6 +111,7 @@ void runMoving(benchmark::State& state, const Scene& scene, const Moving& moving
     if (++i == poses.size()) {
       i = 0;
       hint = {};  // the sequence starts over: the last frame is no neighbour of the first
+      cache.reset();
     }
   }
   state.counters["dist/diag"] = moving.motion.target_distance / scene.diagonal;
@@ -167,13 +172,15 @@ int main(int argc, char** argv) {
           return cfl::bench::fclDistance(*scene.obbrss_a, kIdentity, *scene.obbrss_b, X).distance;
         });
     cfl::DistanceOptions hint;
+    cfl::DistanceCache cache;
     for (const auto& X : moving.motion.poses) {
       const double f = cfl::bench::fclDistance(*scene.obbrss_a, kIdentity, *scene.obbrss_b, X).distance;
       const cfl::DistanceResult cold = cfl::computeDistance(scene.cfl_a, kIdentity, scene.model_b, X);
       const cfl::DistanceResult warm = cfl::computeDistance(scene.cfl_a, kIdentity, scene.model_b, X, hint);
       hint.hint_triangle_a = warm.triangle_a;
       hint.hint_triangle_b = warm.triangle_b;
-      for (double d : {std::abs(cold.distance - f), std::abs(warm.distance - f)}) {
+      const cfl::DistanceResult cached = cfl::computeDistance(scene.cfl_a, kIdentity, scene.model_b, X, cache);
+      for (double d : {std::abs(cold.distance - f), std::abs(warm.distance - f), std::abs(cached.distance - f)}) {
         moving.max_difference = std::isnan(d) ? INFINITY : std::max(moving.max_difference, d);
       }
     }
@@ -191,7 +198,7 @@ int main(int argc, char** argv) {
       })->Unit(benchmark::kMicrosecond);
     }
   }
-  for (const char* method : {"CFL_cold", "CFL_warm", "OBBRSS"}) {
+  for (const char* method : {"CFL_cold", "CFL_warm", "CFL_cached", "OBBRSS"}) {
     benchmark::RegisterBenchmark((std::string("moving/") + method).c_str(), [method](benchmark::State& state) {
       runMoving(state, scene, moving, method);
     })->Unit(benchmark::kMicrosecond);

@@ -63,8 +63,10 @@ Extra sections, printed after the table only when asked for:
   --moving FRAMES  moving objects: B orbits A once and turns twice over FRAMES frames, resting at a gap of
                    --separation (fraction of A's diagonal, default 0.01; set by sphere tracing on OBBRSS
                    distances). Times per frame: CFL cold (no hint), CFL warm (hint_triangle_a/b = the previous
-                   frame's warm answer, the first frame cold) and OBBRSS. Every CFL answer is checked
-                   against OBBRSS (1e-9 of the diagonal). Reports medians, p90, N_p and the speedups.
+                   frame's warm answer, the first frame cold), CFL cached (a DistanceCache carried from frame
+                   to frame; each timed query starts from the cache the previous frame left) and OBBRSS.
+                   Every CFL answer is checked against OBBRSS (1e-9 of the diagonal). Reports medians, p90,
+                   means, N_p and the speedups.
   --rel-err E      approximate queries: on each band's poses, CFL with DistanceOptions::rel_err = E and
   --abs-err A      abs_err = A (mesh units; default 0) next to exact CFL and OBBRSS. Pruning follows FCL's
                    rule, which needs BOTH conditions (lb >= best - A and lb * (1 + E) >= best): with A = 0,

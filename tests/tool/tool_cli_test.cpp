@@ -297,7 +297,7 @@ double numberAfter(const std::string& text, const std::string& label) {
   return std::strtod(text.c_str() + at + label.size(), nullptr);
 }
 
-TEST_F(ToolCliTest, BenchMovingAloneReportsColdWarmAndObbrssOverTheRequestedFrames) {
+TEST_F(ToolCliTest, BenchMovingAloneReportsColdWarmCachedAndObbrssOverTheRequestedFrames) {
   const std::string mesh = writeMesh("torus.obj", roundToFloat(test::makeTorus(1.0, 0.35, 16, 8)));
   const ToolRun r = run({"bench", mesh, "--no-table", "--moving", "20", "--queries", "2", "--repeats", "1",
                          "--resolution", "10"});
@@ -315,19 +315,37 @@ TEST_F(ToolCliTest, BenchMovingAloneReportsColdWarmAndObbrssOverTheRequestedFram
   EXPECT_TRUE(contains(r.out, "the answer was that same pair on ")) << r.out;
   EXPECT_TRUE(contains(r.out, " of 19 frames")) << r.out;  // the first frame has no hint
   const std::string header = lineStartingWith(r.out, "method ");
-  for (const char* column : {"median", "p90", "N_p", "N_v", "max|d|/diag"}) EXPECT_TRUE(contains(header, column)) << header;
-  for (const char* method : {"CFL cold ", "CFL warm ", "OBBRSS "}) {
+  for (const char* column : {"median", "p90", "mean", "N_p", "N_v", "max|d|/diag"}) {
+    EXPECT_TRUE(contains(header, column)) << header;
+  }
+  for (const char* method : {"CFL cold ", "CFL warm ", "CFL cached ", "OBBRSS "}) {
     const std::string row = lineStartingWith(r.out, method);
     EXPECT_FALSE(row.empty()) << method << "\n" << r.out;
     EXPECT_FALSE(contains(row, "MISMATCH")) << row;
   }
-  // Both CFL rows agree with OBBRSS to the exactness bound, as printed.
-  for (const char* method : {"CFL cold ", "CFL warm "}) {
+  // Every CFL row agrees with OBBRSS to the exactness bound, as printed.
+  for (const char* method : {"CFL cold ", "CFL warm ", "CFL cached "}) {
     const std::string row = lineStartingWith(r.out, method);
     const double difference = std::strtod(row.substr(row.rfind('|') + 1).c_str(), nullptr);
     EXPECT_LE(difference, 1e-9) << row;
   }
   EXPECT_TRUE(contains(r.out, "warm/cold speedup")) << r.out;
+  EXPECT_TRUE(contains(r.out, "cached/cold speedup")) << r.out;
+  // 20 frames are far too coarse for a certificate to pay: every frame searches.
+  EXPECT_TRUE(contains(r.out, "its certificate answered 0 of 20 frames")) << r.out;
+}
+
+TEST_F(ToolCliTest, BenchMovingSlowlyIsMostlyAnsweredByTheCacheAndStaysExact) {
+  const std::string mesh = writeMesh("torus.obj", roundToFloat(test::makeTorus(1.0, 0.35, 16, 8)));
+  const ToolRun r = run({"bench", mesh, "--no-table", "--moving", "1500", "--queries", "2", "--repeats", "1",
+                         "--resolution", "10"});
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  const std::string cached = lineStartingWith(r.out, "cached:");
+  const double answered = numberAfter(cached, "its certificate answered ");
+  EXPECT_GE(answered, 750) << cached;  // at least half of the frames
+  const std::string row = lineStartingWith(r.out, "CFL cached ");
+  EXPECT_FALSE(contains(row, "MISMATCH")) << row;
+  EXPECT_LE(std::strtod(row.substr(row.rfind('|') + 1).c_str(), nullptr), 1e-9) << row;
 }
 
 TEST_F(ToolCliTest, BenchApproximateSectionHoldsEveryBandWithinRelErr) {

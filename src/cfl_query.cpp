@@ -536,10 +536,10 @@ class Search {
   double best() const { return best_; }
   bool found() const { return best_a_ >= 0; }
 
-  // From now on, search `margin` past the best distance and append to `near` the id of every triangle of B
-  // found within `margin` of the best distance at the time, with that pair's distance (with repeats). After a complete search, every
-  // triangle of B missing from `near` is at least best() + margin from A: its pairs were each pruned by a
-  // lower bound of at least that, or tested and found that far.
+  // From now on, search `margin` past the best distance, and append to `near` each triangle of B found
+  // within `margin` of the best distance at the time, with that pair's distance (repeats allowed). After a
+  // complete search, every triangle of B missing from `near` is at least best() + margin from A: its pairs
+  // were each pruned by a lower bound of at least that, or tested and found that far.
   void certify(double margin, std::vector<std::pair<double, int>>* near) {
     margin_ = margin;
     near_triangles_ = near;

@@ -704,8 +704,8 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
   }
   ++cache.searched;
   const double voxel = a.grid.voxel_size;
-  const double margin =
-      std::isfinite(step) && step <= kLargestCertifiedStep * voxel ? std::sqrt(step * voxel / kMarginCost) : 0.0;
+  // An infinite step (the first query) fails the comparison too.
+  const double margin = step <= kLargestCertifiedStep * voxel ? std::sqrt(step * voxel / kMarginCost) : 0.0;
   auto& near = tls_scratch.near_triangles;
   near.clear();
   search.certify(margin, &near);

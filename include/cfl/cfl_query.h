@@ -99,8 +99,8 @@ struct DistanceCache {
   std::int64_t searched = 0;
 
   // The state below is read and written by computeDistance only.
-  const void* model_a = nullptr;
-  const void* model_b = nullptr;
+  const CflModel* model_a = nullptr;
+  const MeshModel* model_b = nullptr;
   std::size_t triangle_counts[2] = {0, 0};  ///< Of A and B, so that a model rebuilt in place is noticed.
   bool certified = false;
   Eigen::Matrix3d certified_rotation = Eigen::Matrix3d::Identity();  ///< R_AB at the certificate.
@@ -115,7 +115,8 @@ struct DistanceCache {
 
   /// Forgets the certificate and the previous pose (keeps the statistics and the memory).
   void reset() {
-    model_a = model_b = nullptr;
+    model_a = nullptr;
+    model_b = nullptr;
     triangle_counts[0] = triangle_counts[1] = 0;
     certified = has_previous = false;
     near_triangles.clear();

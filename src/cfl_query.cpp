@@ -289,7 +289,7 @@ class Search {
       near += dx * dx + dy * dy + dz * dz < reach * reach;
     }
     bool listed = false;
-    for (std::size_t n = 0; n < near; ++n) testPairIfClose(ids[n], tb, listed);
+    for (std::size_t n = 0; n < near && best_ > 0; ++n) testPairIfClose(ids[n], tb, listed);  // 0 ends the query
   }
 
   // Triangle tb of B against A's Bvh: exact wherever the triangle is, for the parts outside the grid.
@@ -444,13 +444,22 @@ class Search {
     }
   }
 
+  // Whether a node of B lies wholly in A's grid (by its sphere): its triangles then take the lists' path,
+  // and bounding them one by one against the grid cannot cost the node pairs' pruning outside it.
+  bool insideGrid(const BvhNode& node) const {
+    const Eigen::Vector3d center = X_AB_.apply(node.center);
+    const Eigen::Vector3d reach = Eigen::Vector3d::Constant(node.radius);
+    return ((center - reach).array() >= grid_box_.min.array()).all() &&
+           ((center + reach).array() <= grid_box_.max.array()).all();
+  }
+
   // One step of runHierarchical: tests a leaf's triangles, or offers the children of a node (the larger
   // node of a pair, by sphere radius; a leaf is never split).
   template <class Offer, class OfferAgainstGrid>
   void expand(const Scratch::HeapEntry& entry, Offer& offer, OfferAgainstGrid& offerAgainstGrid) {
     const BvhNode& node_b = b_.bvh.nodes[entry.node_b];
     if (entry.node_a < 0) {
-      if (node_b.subtree_count <= kSmallSubtreeTriangles) {
+      if (node_b.subtree_count <= kSmallSubtreeTriangles && insideGrid(node_b)) {
         // Queued on its nearest corner's bound; each triangle's cell may already rule it out. Nearest
         // first, without the heap traffic of the last levels.
         std::pair<double, int> order[kSmallSubtreeTriangles];

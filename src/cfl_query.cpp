@@ -198,6 +198,13 @@ class Search {
     listed = testPair(a, tb) || listed;
   }
 
+  // The larger of a distance-field bound at `center` and the distance from `center` to A's bounding box;
+  // the box's square root is taken only when the box wins.
+  double fieldOrBoxBound(const Eigen::Vector3d& center, double field) const {
+    const double box_squared = detail::pointBoxSquaredDistance(center, mesh_a_.bounds);
+    return box_squared > field * std::abs(field) ? std::sqrt(box_squared) : field;
+  }
+
   // Lower bound on the distance from any point within `radius` of `center` to A, in O(1): the nearest grid
   // corner's distance minus how far the point can be from it (distance to a set is 1-Lipschitz), or the
   // distance to A's bounding box when that is larger.
@@ -211,8 +218,7 @@ class Search {
     }
     const Eigen::Vector3d corner = grid.cornerPosition(index[0], index[1], index[2]);
     const double field = a_.corner_distance[grid.cornerIndex(index[0], index[1], index[2])] - (center - corner).norm();
-    const double box_squared = detail::pointBoxSquaredDistance(center, mesh_a_.bounds);
-    return (box_squared > field * std::abs(field) ? std::sqrt(box_squared) : field) - radius;
+    return fieldOrBoxBound(center, field) - radius;
   }
 
   // A tighter and costlier sphereLowerBound: the best of the eight corners of the grid cell holding
@@ -230,8 +236,7 @@ class Search {
       const double reach = (center - grid.cornerPosition(i, j, k)).norm();
       field = std::max(field, a_.corner_distance[grid.cornerIndex(i, j, k)] - reach);
     }
-    const double box_squared = detail::pointBoxSquaredDistance(center, mesh_a_.bounds);
-    return (box_squared > field * std::abs(field) ? std::sqrt(box_squared) : field) - radius;
+    return fieldOrBoxBound(center, field) - radius;
   }
 
   // Triangle tb of B against the CFLs of the voxels its bounding box covers. Every point of the triangle

@@ -105,6 +105,7 @@ class Search {
     scratch_.beginQuery(mesh_a_.corners.size());
     grid_box_ = a_.grid.bounds();
     inverse_voxel_size_ = 1 / a_.grid.voxel_size;
+    exact_ = options.abs_err == 0 && options.rel_err == 0;
     if (options.hint_triangle_a >= 0 && options.hint_triangle_a < int(mesh_a_.corners.size()) &&
         options.hint_triangle_b >= 0 && options.hint_triangle_b < int(b_.corners.size())) {
       PreparedTriangle tb;
@@ -117,7 +118,7 @@ class Search {
   // (DistanceCache) looks `margin_` further, so that what it skips is known to be that far; but once a
   // triangle of B is `listed` in the certificate, its other pairs only need to beat the best distance.
   double pruneThreshold(bool listed = false) const {
-    if (options_.abs_err == 0 && options_.rel_err == 0) return listed ? best_ : best_ + margin_;
+    if (exact_) return listed ? best_ : best_ + margin_;
     return std::max(best_ - options_.abs_err, best_ / (1 + options_.rel_err));
   }
 
@@ -147,6 +148,11 @@ class Search {
 
   // Exact distance between triangle a of A and triangle b of B (already in A's frame). Returns whether it
   // listed tb in the certificate of a certifying search.
+  // Out of line: the loops that call it run it on a few percent of their candidates, and inlined it would
+  // make them save and restore its registers on every candidate.
+#if defined(__GNUC__)
+  __attribute__((noinline))
+#endif
   bool testPair(int a, const PreparedTriangle& tb) {
     ++counters_.triangle_pairs;
     Eigen::Vector3d p, q;
@@ -255,6 +261,11 @@ class Search {
     const double threshold = pruneThreshold();
     auto& candidates = scratch_.list_candidates;
     std::size_t count = 0;
+    // An entry whose bound, in entryBoundUnit()s, is code_limit or more is at least the threshold away:
+    // floor(threshold / unit) + 1 > threshold / unit exactly, whatever the division's rounding (it is
+    // monotone). Bytes compared as integers, not converted entry by entry.
+    const double units = threshold / a_.entryBoundUnit();
+    const int code_limit = units < 255 ? int(units) + 1 : 256;
     for (int k = first[2]; k <= last[2]; ++k) {
       for (int j = first[1]; j <= last[1]; ++j) {
         for (int i = first[0]; i <= last[0]; ++i) {
@@ -267,9 +278,8 @@ class Search {
           const std::int32_t* ids = a_.listBegin(v);
           const std::uint8_t* bounds = a_.listBoundsBegin(v);
           const std::ptrdiff_t length = a_.listEnd(v) - ids;
-          const double unit = a_.entryBoundUnit();
           std::ptrdiff_t end = 0;
-          while (end < length && bounds[end] * unit < threshold) ++end;
+          while (end < length && bounds[end] < code_limit) ++end;
           if (candidates.size() < count + std::size_t(end)) candidates.resize(2 * (count + end));
           std::uint32_t* stamp = scratch_.stamp.data();
           int* out = candidates.data();
@@ -643,6 +653,7 @@ class Search {
   Scratch& scratch_;
   Aabb grid_box_;
   double inverse_voxel_size_ = 0;
+  bool exact_ = true;  // no abs_err / rel_err: pruneThreshold's common case, read on every pair
   QueryCounters counters_;
   double best_ = kInfinity;
   double margin_ = 0;

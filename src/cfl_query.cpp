@@ -236,12 +236,25 @@ class Search {
     for (int axis = 0; axis < 3; ++axis) {
       index[axis] = static_cast<int>(std::clamp(std::floor(cell[axis]), 0.0, double(grid.dims[axis] - 1)));
     }
-    double field = -kInfinity;
+    // The eight corners' offsets from `center` per axis, and their squared distances and field values as
+    // plain arrays: the square roots then go two by two through the vector unit.
+    const Eigen::Vector3d offset = center - grid.cornerPosition(index[0], index[1], index[2]);
+    const double h = grid.voxel_size;
+    const double dx[2] = {offset[0] * offset[0], (offset[0] - h) * (offset[0] - h)};
+    const double dy[2] = {offset[1] * offset[1], (offset[1] - h) * (offset[1] - h)};
+    const double dz[2] = {offset[2] * offset[2], (offset[2] - h) * (offset[2] - h)};
+    const std::int64_t base = grid.cornerIndex(index[0], index[1], index[2]);
+    const std::int64_t step_j = grid.cornerIndex(index[0], index[1] + 1, index[2]) - base;
+    const std::int64_t step_k = grid.cornerIndex(index[0], index[1], index[2] + 1) - base;
+    const double* distance = a_.corner_distance.data() + base;
+    double squared[8], value[8];
     for (int corner = 0; corner < 8; ++corner) {
-      const int i = index[0] + (corner & 1), j = index[1] + ((corner >> 1) & 1), k = index[2] + (corner >> 2);
-      const double reach = (center - grid.cornerPosition(i, j, k)).norm();
-      field = std::max(field, a_.corner_distance[grid.cornerIndex(i, j, k)] - reach);
+      const int i = corner & 1, j = (corner >> 1) & 1, k = corner >> 2;
+      squared[corner] = dx[i] + dy[j] + dz[k];
+      value[corner] = distance[i + j * step_j + k * step_k];
     }
+    double field = -kInfinity;
+    for (int corner = 0; corner < 8; ++corner) field = std::max(field, value[corner] - std::sqrt(squared[corner]));
     return fieldOrBoxBound(center, field) - radius;
   }
 

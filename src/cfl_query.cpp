@@ -236,8 +236,9 @@ class Search {
     for (int axis = 0; axis < 3; ++axis) {
       index[axis] = static_cast<int>(std::clamp(std::floor(cell[axis]), 0.0, double(grid.dims[axis] - 1)));
     }
-    // The eight corners' offsets from `center` per axis, and their squared distances and field values as
-    // plain arrays: the square roots then go two by two through the vector unit.
+    // Squared offsets from `center` to the cell's two corner planes on each axis, then the eight corners'
+    // squared distances and field values as plain arrays: the square roots go two by two through the
+    // vector unit.
     const Eigen::Vector3d offset = center - grid.cornerPosition(index[0], index[1], index[2]);
     const double h = grid.voxel_size;
     const double dx[2] = {offset[0] * offset[0], (offset[0] - h) * (offset[0] - h)};
@@ -791,6 +792,13 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
     search_options.hint_triangle_b = cache.previous_triangle_b;
   }
   Search search(a, b, X_AB, search_options, tls_scratch);
+  // The answer's pair is the next search's first upper bound.
+  auto answer = [&]() {
+    DistanceResult r = search.result(X_WA);
+    cache.previous_triangle_a = r.triangle_a;
+    cache.previous_triangle_b = r.triangle_b;
+    return r;
+  };
   if (cache.certified) {
     // Every triangle of B outside the list is still at least level - motion from A.
     for (int t : cache.near_triangles) search.testTriangle(t);
@@ -798,10 +806,7 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
         motionBound(b.bounds, cache.certified_rotation, cache.certified_translation, X_AB.rotation, X_AB.translation);
     if (search.found() && (search.best() <= 0 || search.best() <= cache.level - motion)) {
       ++cache.reused;
-      DistanceResult r = search.result(X_WA);
-      cache.previous_triangle_a = r.triangle_a;
-      cache.previous_triangle_b = r.triangle_b;
-      return r;
+      return answer();
     }
   }
   ++cache.searched;
@@ -829,10 +834,7 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
   cache.level = search.best() > 0 ? search.best() + margin : 0.0;
   cache.certified_rotation = X_AB.rotation;
   cache.certified_translation = X_AB.translation;
-  DistanceResult r = search.result(X_WA);
-  cache.previous_triangle_a = r.triangle_a;
-  cache.previous_triangle_b = r.triangle_b;
-  return r;
+  return answer();
 }
 
 DistanceResult bruteForceDistance(const MeshModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,

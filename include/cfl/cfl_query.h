@@ -84,11 +84,11 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
 /// saves: the query then searches with the previous answer as a hint (see hint_triangle_a), as fast as a
 /// hinted query.
 ///
-/// In `cfl bench --moving 10000 --clock cpu` (bunny 1% apart, B moving 0.05% of the diagonal and turning
-/// 0.07 degrees per frame) the certificate answered 8246 of 10000 frames; the median query took 16.8 us
-/// against 52.7 us cold (3.1x), the mean 32.9 against 59.6 us (1.8x: the searches that refresh the
-/// certificate cost more than a cold query). At 1000 frames (0.46% and 0.72 degrees) it never pays and
-/// matches the hinted query (1.3x).
+/// In `cfl bench --moving 10000 --clock cpu` at 50da588 (bunny 1% apart, B moving 0.05% of the diagonal
+/// and turning 0.07 degrees per frame) the certificate answered 8246 of 10000 frames; the median query took
+/// 16.3 us against 40.3 us cold (2.47x), the mean 27.6 against 48.0 us (1.74x: the searches that refresh
+/// the certificate cost more than a cold query). At 1000 frames (0.46% and 0.72 degrees) it never pays and
+/// matches the hinted query (1.42x).
 ///
 /// Plain data written by computeDistance: create one per pair of models and pass it to every query of
 /// that pair. Calling with other models, another mode or a non-zero rel_err / abs_err resets it (the

@@ -66,9 +66,11 @@ struct Scratch {
     // Order of the search, nearest first: the node's lower bound when positive. Bounds <= 0 say only "may
     // overlap", and ordering by them would pop the largest nodes first: a breadth-first search where
     // overlapping meshes need a depth-first dive to the first intersecting pair, which ends the query. They
-    // get -1 / (1 + radius of B's node) instead: before every positive bound, smallest node first. Pruning
-    // on the key stays valid: a key <= 0 is never pruned by a positive threshold, and a threshold of 0
-    // ends the query anyway.
+    // get -1 / (1 + radius + max(0, bound + radius)) instead, radius that of B's node: before every
+    // positive bound, the smallest node first, and of two alike the one whose bound leaves it nearer A (on
+    // overlapping bunnies 1.78x faster than the radius alone, whose choice between siblings is arbitrary).
+    // Pruning on the key stays valid: a key <= 0 is never pruned by a positive threshold, and a threshold
+    // of 0 ends the query anyway.
     double key;
     int node_b;
     int node_a;  // -1: B's node against A's grid; otherwise a node pair of the two Bvhs
@@ -259,6 +261,66 @@ class Search {
     return fieldOrBoxBound(center, field) - radius;
   }
 
+  // Lower bounds on the distance from a convex piece of B (a triangle, an oriented box) to A, from grid
+  // corners on A's far side of it. For any corner c, every point x of the piece is at least D(c) - |x - c|
+  // from A, and the farthest point of a convex piece from c is one of its vertices. The corners next to the
+  // piece (cellLowerBound) lose its whole radius when it faces A across a gap narrower than that radius,
+  // which at short range is every piece near the answer. A corner k voxels out along the field's gradient
+  // loses only about radius^2 / (2 k voxel) across a flat gap. On 300 bunny poses per band this took 23% to
+  // 35% off the median query from overlapping to 50% apart and halved the nodes and triangles of B bounded.
+  double farCornerLowerBound(const Eigen::Vector3d corners[3], const Eigen::Vector3d& center) const {
+    return farCornerLowerBound(center, [&](const Eigen::Vector3d& position) {
+      return std::max({(corners[0] - position).squaredNorm(), (corners[1] - position).squaredNorm(),
+                       (corners[2] - position).squaredNorm()});
+    });
+  }
+  // Box axes as columns, half extents along them, all in A's frame.
+  double farCornerLowerBound(const Eigen::Vector3d& box_center, const Eigen::Matrix3d& axes,
+                             const Eigen::Vector3d& half) const {
+    return farCornerLowerBound(box_center, [&](const Eigen::Vector3d& position) {
+      // The farthest box corner takes, on each axis, the side away from `position`.
+      const Eigen::Vector3d offset = box_center - position;
+      return offset.squaredNorm() + half.squaredNorm() + 2 * half.dot((axes.transpose() * offset).cwiseAbs());
+    });
+  }
+  // `farthestSquared(p)`: the squared distance from p to the piece's farthest point.
+  template <class FarthestSquared>
+  double farCornerLowerBound(const Eigen::Vector3d& center, const FarthestSquared& farthestSquared) const {
+    const VoxelGrid& grid = a_.grid;
+    const Eigen::Vector3d cell = (center - grid.origin) * inverse_voxel_size_;
+    int index[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      index[axis] = static_cast<int>(std::clamp(std::floor(cell[axis]), 0.0, double(grid.dims[axis] - 1)));
+    }
+    // The direction away from A: the field's gradient over the cell holding `center` (any direction gives
+    // valid bounds; this one gives tight ones).
+    const std::int64_t base = grid.cornerIndex(index[0], index[1], index[2]);
+    const std::int64_t step_j = grid.cornerIndex(index[0], index[1] + 1, index[2]) - base;
+    const std::int64_t step_k = grid.cornerIndex(index[0], index[1], index[2] + 1) - base;
+    const double* d = a_.corner_distance.data() + base;
+    const double d000 = d[0], d100 = d[1], d010 = d[step_j], d110 = d[1 + step_j], d001 = d[step_k],
+                 d101 = d[1 + step_k], d011 = d[step_j + step_k], d111 = d[1 + step_j + step_k];
+    const Eigen::Vector3d gradient((d100 + d110 + d101 + d111) - (d000 + d010 + d001 + d011),
+                                   (d010 + d110 + d011 + d111) - (d000 + d100 + d001 + d101),
+                                   (d001 + d101 + d011 + d111) - (d000 + d100 + d010 + d110));
+    const double norm = gradient.norm();
+    double bound = -kInfinity;
+    if (!(norm > 0)) return bound;
+    const Eigen::Vector3d direction = gradient / norm;
+    // Farther corners lose less across flat gaps, nearer ones less where A curves away; {1, 2, 3.5, 5}
+    // voxels measured as well as {2, 4, 8}, {1.5, 3} and {1, 2, 3.5, 5, 8}, within the noise.
+    for (double voxels : {1.0, 2.0, 3.5, 5.0}) {
+      const Eigen::Vector3d target = cell + voxels * direction;
+      int c[3];
+      for (int axis = 0; axis < 3; ++axis) {
+        c[axis] = static_cast<int>(std::clamp(std::floor(target[axis] + 0.5), 0.0, double(grid.dims[axis])));
+      }
+      const double reach = std::sqrt(farthestSquared(grid.cornerPosition(c[0], c[1], c[2])));
+      bound = std::max(bound, a_.corner_distance[grid.cornerIndex(c[0], c[1], c[2])] - reach);
+    }
+    return bound;
+  }
+
   // Triangle tb of B against the CFLs of the voxels its bounding box covers. Every point of the triangle
   // lies in one of them, and each point's closest triangle of A is in its voxel's list, so the minimum over
   // these lists is the triangle's exact distance to A.
@@ -426,7 +488,8 @@ class Search {
     int offered_count = 0;
     auto offer = [&](double lower_bound, int node_b, int node_a) {
       if (lower_bound >= pruneThreshold()) return;
-      const double key = lower_bound > 0 ? lower_bound : -1 / (1 + nodes_b[node_b].radius);
+      const double radius = nodes_b[node_b].radius;
+      const double key = lower_bound > 0 ? lower_bound : -1 / (1 + radius + std::max(0.0, lower_bound + radius));
       offered[offered_count++] = {key, node_b, node_a};
     };
     auto offerAgainstGrid = [&](int n) {
@@ -437,6 +500,12 @@ class Search {
       const Eigen::Vector3d nearest = center.cwiseMax(grid_box_.min).cwiseMin(grid_box_.max);
       if ((nearest - center).squaredNorm() > radius * radius) {
         offer(std::max(lower_bound, nodePairLowerBound(0, place(n, center), pruneThreshold())), n, 0);
+      } else if (lower_bound < pruneThreshold() && radius < 2 * a_.grid.voxel_size) {
+        // Larger nodes are rarely flat enough for the far corners to beat the sphere's bound (overlapping
+        // bunnies: 1.59x with this limit, 1.41x without).
+        const BvhNode& node = nodes_b[n];
+        const double far = farCornerLowerBound(X_AB_.apply(node.obb_center), X_AB_.rotation * node.obb_axes, node.obb_half);
+        offer(std::max(lower_bound, far), n, -1);
       } else {
         offer(lower_bound, n, -1);
       }
@@ -499,6 +568,13 @@ class Search {
           const Eigen::Vector4d& sphere = b_.spheres[t];
           ++counters_.voxel_tests;
           order[count++] = {cellLowerBound(X_AB_.apply(sphere.head<3>()), sphere[3]), t};
+        }
+        for (int n = 0; n < count; ++n) {
+          if (order[n].first >= pruneThreshold()) continue;
+          const int t = order[n].second;
+          Eigen::Vector3d corners[3];
+          transformTriangle(t, corners);
+          order[n].first = std::max(order[n].first, farCornerLowerBound(corners, X_AB_.apply(b_.spheres[t].head<3>())));
         }
         std::sort(order, order + count);
         for (int n = 0; n < count && order[n].first < pruneThreshold() && best_ > 0; ++n) testTriangle(order[n].second);

@@ -321,6 +321,19 @@ class Search {
     return bound;
   }
 
+  // Lower bound on the distance from triangle t of B to A: its sphere against the corners of its cell, then,
+  // if that does not reach the threshold, the far corners.
+  double triangleLowerBound(int t) {
+    const Eigen::Vector4d& sphere = b_.spheres[t];
+    const Eigen::Vector3d center = X_AB_.apply(sphere.head<3>());
+    ++counters_.voxel_tests;
+    const double bound = cellLowerBound(center, sphere[3]);
+    if (bound >= pruneThreshold()) return bound;
+    Eigen::Vector3d corners[3];
+    transformTriangle(t, corners);
+    return std::max(bound, farCornerLowerBound(corners, center));
+  }
+
   // Triangle tb of B against the CFLs of the voxels its bounding box covers. Every point of the triangle
   // lies in one of them, and each point's closest triangle of A is in its voxel's list, so the minimum over
   // these lists is the triangle's exact distance to A.
@@ -565,16 +578,7 @@ class Search {
         int count = 0;
         for (int n = node_b.subtree_first; n < node_b.subtree_first + node_b.subtree_count; ++n) {
           const int t = b_.bvh.triangle_ids[n];
-          const Eigen::Vector4d& sphere = b_.spheres[t];
-          ++counters_.voxel_tests;
-          order[count++] = {cellLowerBound(X_AB_.apply(sphere.head<3>()), sphere[3]), t};
-        }
-        for (int n = 0; n < count; ++n) {
-          if (order[n].first >= pruneThreshold()) continue;
-          const int t = order[n].second;
-          Eigen::Vector3d corners[3];
-          transformTriangle(t, corners);
-          order[n].first = std::max(order[n].first, farCornerLowerBound(corners, X_AB_.apply(b_.spheres[t].head<3>())));
+          order[count++] = {triangleLowerBound(t), t};
         }
         std::sort(order, order + count);
         for (int n = 0; n < count && order[n].first < pruneThreshold() && best_ > 0; ++n) testTriangle(order[n].second);
@@ -876,8 +880,11 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
     return r;
   };
   if (cache.certified) {
-    // Every triangle of B outside the list is still at least level - motion from A.
-    for (int t : cache.near_triangles) search.testTriangle(t);
+    // Every triangle of B outside the list is still at least level - motion from A; those in it are
+    // bounded first, as in a search (the list is nearest first, so its first triangle sets the bound).
+    for (int t : cache.near_triangles) {
+      if (search.triangleLowerBound(t) < search.pruneThreshold()) search.testTriangle(t);
+    }
     const double motion =
         motionBound(b.bounds, cache.certified_rotation, cache.certified_translation, X_AB.rotation, X_AB.translation);
     if (search.found() && (search.best() <= 0 || search.best() <= cache.level - motion)) {

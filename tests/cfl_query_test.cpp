@@ -240,6 +240,46 @@ TEST(ComputeDistance, MatchesBruteForceOnRandomPosesInBothModesAndOverloads) {
   EXPECT_GE(overlapping, static_cast<int>(std::size(kPairs)) * kPosesPerSeparation) << "too few overlapping poses";
 }
 
+// Sheets facing each other across gaps far narrower than their triangles: where the query bounds B's
+// triangles and nodes from grid corners on A's far side, tightest across flat gaps. A bound that overshot
+// by a fraction of the gap would drop the closest pair here.
+TEST(ComputeDistance, FacingSheetsAcrossNarrowGapsMatchBruteForce) {
+  test::Rng rng(4242);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  Failures failures;
+  int poses = 0;
+  for (double amplitude : {0.0, 0.05}) {
+    const auto sheet = makeShape(amplitude == 0 ? "flat_sheet" : "gently_wavy_sheet",
+                                 test::makeWavySheet(1.0, amplitude, 12), 16);
+    for (double gap : {1e-5, 1e-3, 2e-2}) {
+      for (int n = 0; n < 12; ++n) {
+        // B: the same sheet turned about its normal, tilted by up to a degree, shifted sideways, above A.
+        const double tilt = 0.0175 * unit(rng);
+        const Eigen::Matrix3d R = (Eigen::AngleAxisd(tilt, Eigen::Vector3d(unit(rng), unit(rng), 0).normalized()) *
+                                   Eigen::AngleAxisd(3.2 * unit(rng), Eigen::Vector3d::UnitZ()))
+                                      .toRotationMatrix();
+        Pose pose{Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity(), "facing sheets"};
+        pose.X_WA.linear() = test::randomRotation(rng);
+        pose.X_WB.linear() = pose.X_WA.linear() * R;
+        const Eigen::Vector3d offset(0.3 * unit(rng), 0.3 * unit(rng), 0);
+        pose.X_WB.translation() = pose.X_WA.linear() * offset;
+        // Lift B until its lowest point clears A's highest by `gap`, then let brute force say the truth.
+        double lowest_b = std::numeric_limits<double>::infinity(), highest_a = -lowest_b;
+        for (const auto& v : sheet->mesh.vertices) {
+          lowest_b = std::min(lowest_b, (R * v + offset).z());
+          highest_a = std::max(highest_a, v.z());
+        }
+        pose.X_WB.translation() += pose.X_WA.linear() * Eigen::Vector3d(0, 0, highest_a - lowest_b + gap * sheet->diagonal);
+        const DistanceResult truth = bruteForceDistance(sheet->model, pose.X_WA, sheet->model, pose.X_WB);
+        ++poses;
+        checkResult(computeDistance(sheet->cfl, pose.X_WA, sheet->model, pose.X_WB), truth, *sheet, *sheet, pose,
+                    sheet->name + " at gap " + std::to_string(gap), failures);
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0) << "of " << poses << " poses";
+}
+
 TEST(ComputeDistance, MatchesBruteForceOnTheBunny) {
   test::Rng rng(77);
   Failures failures;

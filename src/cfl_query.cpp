@@ -229,15 +229,33 @@ class Search {
     return fieldOrBoxBound(center, field) - radius;
   }
 
+  // The grid cell holding a point given in voxel edges from the grid's origin (clamped to the grid), and
+  // where its corners' distances sit: corner (i, j, k) of the cell at base + i + j step_j + k step_k.
+  struct CellCorners {
+    Eigen::Vector3d point;
+    int index[3];
+    std::int64_t base, step_j, step_k;
+  };
+  CellCorners cellCorners(const Eigen::Vector3d& point) const {
+    const VoxelGrid& grid = a_.grid;
+    CellCorners cell;
+    cell.point = point;
+    for (int axis = 0; axis < 3; ++axis) {
+      cell.index[axis] = static_cast<int>(std::clamp(std::floor(point[axis]), 0.0, double(grid.dims[axis] - 1)));
+    }
+    const int* index = cell.index;
+    cell.base = grid.cornerIndex(index[0], index[1], index[2]);
+    cell.step_j = grid.cornerIndex(index[0], index[1] + 1, index[2]) - cell.base;
+    cell.step_k = grid.cornerIndex(index[0], index[1], index[2] + 1) - cell.base;
+    return cell;
+  }
+
   // A tighter and costlier sphereLowerBound: the best of the eight corners of the grid cell holding
   // `center` (the nearest corner alone loses up to |center - corner| whatever the direction to the mesh).
   double cellLowerBound(const Eigen::Vector3d& center, double radius) const {
     const VoxelGrid& grid = a_.grid;
-    const Eigen::Vector3d cell = (center - grid.origin) * inverse_voxel_size_;  // any corner gives a valid bound
-    int index[3];
-    for (int axis = 0; axis < 3; ++axis) {
-      index[axis] = static_cast<int>(std::clamp(std::floor(cell[axis]), 0.0, double(grid.dims[axis] - 1)));
-    }
+    const CellCorners cell = cellCorners((center - grid.origin) * inverse_voxel_size_);  // any cell gives a valid bound
+    const int* index = cell.index;
     // Squared offsets from `center` to the cell's two corner planes on each axis, then the eight corners'
     // squared distances and field values as plain arrays: the square roots go two by two through the
     // vector unit.
@@ -246,15 +264,12 @@ class Search {
     const double dx[2] = {offset[0] * offset[0], (offset[0] - h) * (offset[0] - h)};
     const double dy[2] = {offset[1] * offset[1], (offset[1] - h) * (offset[1] - h)};
     const double dz[2] = {offset[2] * offset[2], (offset[2] - h) * (offset[2] - h)};
-    const std::int64_t base = grid.cornerIndex(index[0], index[1], index[2]);
-    const std::int64_t step_j = grid.cornerIndex(index[0], index[1] + 1, index[2]) - base;
-    const std::int64_t step_k = grid.cornerIndex(index[0], index[1], index[2] + 1) - base;
-    const double* distance = a_.corner_distance.data() + base;
+    const double* distance = a_.corner_distance.data() + cell.base;
     double squared[8], value[8];
     for (int corner = 0; corner < 8; ++corner) {
       const int i = corner & 1, j = (corner >> 1) & 1, k = corner >> 2;
       squared[corner] = dx[i] + dy[j] + dz[k];
-      value[corner] = distance[i + j * step_j + k * step_k];
+      value[corner] = distance[i + j * cell.step_j + k * cell.step_k];
     }
     double field = -kInfinity;
     for (int corner = 0; corner < 8; ++corner) field = std::max(field, value[corner] - std::sqrt(squared[corner]));
@@ -287,17 +302,11 @@ class Search {
   template <class FarthestSquared>
   double farCornerLowerBound(const Eigen::Vector3d& center, const FarthestSquared& farthestSquared) const {
     const VoxelGrid& grid = a_.grid;
-    const Eigen::Vector3d cell = (center - grid.origin) * inverse_voxel_size_;
-    int index[3];
-    for (int axis = 0; axis < 3; ++axis) {
-      index[axis] = static_cast<int>(std::clamp(std::floor(cell[axis]), 0.0, double(grid.dims[axis] - 1)));
-    }
+    const CellCorners cell = cellCorners((center - grid.origin) * inverse_voxel_size_);
     // The direction away from A: the field's gradient over the cell holding `center` (any direction gives
     // valid bounds; this one gives tight ones).
-    const std::int64_t base = grid.cornerIndex(index[0], index[1], index[2]);
-    const std::int64_t step_j = grid.cornerIndex(index[0], index[1] + 1, index[2]) - base;
-    const std::int64_t step_k = grid.cornerIndex(index[0], index[1], index[2] + 1) - base;
-    const double* d = a_.corner_distance.data() + base;
+    const std::int64_t step_j = cell.step_j, step_k = cell.step_k;
+    const double* d = a_.corner_distance.data() + cell.base;
     const double d000 = d[0], d100 = d[1], d010 = d[step_j], d110 = d[1 + step_j], d001 = d[step_k],
                  d101 = d[1 + step_k], d011 = d[step_j + step_k], d111 = d[1 + step_j + step_k];
     const Eigen::Vector3d gradient((d100 + d110 + d101 + d111) - (d000 + d010 + d001 + d011),
@@ -310,7 +319,7 @@ class Search {
     // Farther corners lose less across flat gaps, nearer ones less where A curves away; {1, 2, 3.5, 5}
     // voxels measured as well as {2, 4, 8}, {1.5, 3} and {1, 2, 3.5, 5, 8}, within the noise.
     for (double voxels : {1.0, 2.0, 3.5, 5.0}) {
-      const Eigen::Vector3d target = cell + voxels * direction;
+      const Eigen::Vector3d target = cell.point + voxels * direction;
       int c[3];
       for (int axis = 0; axis < 3; ++axis) {
         c[axis] = static_cast<int>(std::clamp(std::floor(target[axis] + 0.5), 0.0, double(grid.dims[axis])));
@@ -516,8 +525,8 @@ class Search {
       } else if (lower_bound < pruneThreshold() && radius < 2 * a_.grid.voxel_size) {
         // Larger nodes are rarely flat enough for the far corners to beat the sphere's bound (overlapping
         // bunnies: 1.59x with this limit, 1.41x without).
-        const BvhNode& node = nodes_b[n];
-        const double far = farCornerLowerBound(X_AB_.apply(node.obb_center), X_AB_.rotation * node.obb_axes, node.obb_half);
+        const PlacedNode placed = place(n, center);
+        const double far = farCornerLowerBound(placed.obb_center, placed.obb_axes, placed.node->obb_half);
         offer(std::max(lower_bound, far), n, -1);
       } else {
         offer(lower_bound, n, -1);

@@ -50,6 +50,15 @@ void voxelRange(const VoxelGrid& grid, const Eigen::Vector3d& lo, const Eigen::V
   }
 }
 
+// x rounded to the nearest integer, for |x| < 2^51: adding 1.5 2^52 leaves no bits below the units, so the
+// sum rounds (to nearest, the default mode); subtracting it back is exact. Unlike std::floor or a conversion
+// to int and back, it stays in the vector registers: the grid lookups of the bounds below do a dozen of
+// these per triangle, and with SSE2 alone (no roundsd) each std::floor is a sequence of conversions.
+inline Eigen::Array3d roundToInteger(const Eigen::Array3d& x) {
+  constexpr double kShift = 6755399441055744.0;  // 1.5 * 2^52
+  return (x + kShift) - kShift;
+}
+
 // Scratch reused across queries on one thread, so queries allocate only while it grows.
 struct Scratch {
   std::vector<std::uint32_t> stamp;  // per triangle of A: the B leaf that last tested it
@@ -107,6 +116,9 @@ class Search {
     scratch_.beginQuery(mesh_a_.corners.size());
     grid_box_ = a_.grid.bounds();
     inverse_voxel_size_ = 1 / a_.grid.voxel_size;
+    const auto& dims = a_.grid.dims;
+    corner_limit_ = Eigen::Array3d(dims[0], dims[1], dims[2]);
+    corner_stride_ = Eigen::Array3d(1, dims[0] + 1, double(dims[0] + 1) * (dims[1] + 1));
     exact_ = options.abs_err == 0 && options.rel_err == 0;
     if (options.hint_triangle_a >= 0 && options.hint_triangle_a < int(mesh_a_.corners.size()) &&
         options.hint_triangle_b >= 0 && options.hint_triangle_b < int(b_.corners.size())) {
@@ -217,36 +229,40 @@ class Search {
   // corner's distance minus how far the point can be from it (distance to a set is 1-Lipschitz), or the
   // distance to A's bounding box when that is larger.
   double sphereLowerBound(const Eigen::Vector3d& center, double radius) const {
-    const VoxelGrid& grid = a_.grid;
-    const Eigen::Vector3d cell = (center - grid.origin) * inverse_voxel_size_;  // any corner gives a valid bound
-    int index[3];
-    for (int axis = 0; axis < 3; ++axis) {
-      const double rounded = std::floor(cell[axis] + 0.5);  // inline, unlike std::round
-      index[axis] = static_cast<int>(std::clamp(rounded, 0.0, double(grid.dims[axis])));
-    }
-    const Eigen::Vector3d corner = grid.cornerPosition(index[0], index[1], index[2]);
-    const double field = a_.corner_distance[grid.cornerIndex(index[0], index[1], index[2])] - (center - corner).norm();
+    // Any corner gives a valid bound.
+    const GridCorner corner = nearestCorner((center - a_.grid.origin) * inverse_voxel_size_);
+    const double field = a_.corner_distance[corner.index] - (center - corner.position).norm();
     return fieldOrBoxBound(center, field) - radius;
+  }
+
+  // The grid corner nearest a point given in voxel edges from the grid's origin (clamped to the grid).
+  struct GridCorner {
+    std::int64_t index;  // into corner_distance
+    Eigen::Vector3d position;
+  };
+  GridCorner nearestCorner(const Eigen::Vector3d& point) const {
+    const Eigen::Array3d rounded = roundToInteger(point.array().max(0.0).min(corner_limit_));
+    return {static_cast<std::int64_t>((rounded * corner_stride_).sum()),
+            a_.grid.origin + a_.grid.voxel_size * rounded.matrix()};
   }
 
   // The grid cell holding a point given in voxel edges from the grid's origin (clamped to the grid), and
   // where its corners' distances sit: corner (i, j, k) of the cell at base + i + j step_j + k step_k.
   struct CellCorners {
     Eigen::Vector3d point;
-    int index[3];
+    Eigen::Vector3d corner;  // position of corner (0, 0, 0)
     std::int64_t base, step_j, step_k;
   };
   CellCorners cellCorners(const Eigen::Vector3d& point) const {
-    const VoxelGrid& grid = a_.grid;
     CellCorners cell;
     cell.point = point;
-    for (int axis = 0; axis < 3; ++axis) {
-      cell.index[axis] = static_cast<int>(std::clamp(std::floor(point[axis]), 0.0, double(grid.dims[axis] - 1)));
-    }
-    const int* index = cell.index;
-    cell.base = grid.cornerIndex(index[0], index[1], index[2]);
-    cell.step_j = grid.cornerIndex(index[0], index[1] + 1, index[2]) - cell.base;
-    cell.step_k = grid.cornerIndex(index[0], index[1], index[2] + 1) - cell.base;
+    // The cell whose lower corner is point - 0.5 rounded; at an integer coordinate that may be the cell
+    // below, which holds the point on its face.
+    const Eigen::Array3d lower = roundToInteger(point.array().max(0.5).min(corner_limit_ - 0.5) - 0.5);
+    cell.base = static_cast<std::int64_t>((lower * corner_stride_).sum());
+    cell.corner = a_.grid.origin + a_.grid.voxel_size * lower.matrix();
+    cell.step_j = static_cast<std::int64_t>(corner_stride_[1]);
+    cell.step_k = static_cast<std::int64_t>(corner_stride_[2]);
     return cell;
   }
 
@@ -255,11 +271,10 @@ class Search {
   double cellLowerBound(const Eigen::Vector3d& center, double radius) const {
     const VoxelGrid& grid = a_.grid;
     const CellCorners cell = cellCorners((center - grid.origin) * inverse_voxel_size_);  // any cell gives a valid bound
-    const int* index = cell.index;
     // Squared offsets from `center` to the cell's two corner planes on each axis, then the eight corners'
     // squared distances and field values as plain arrays: the square roots go two by two through the
     // vector unit.
-    const Eigen::Vector3d offset = center - grid.cornerPosition(index[0], index[1], index[2]);
+    const Eigen::Vector3d offset = center - cell.corner;
     const double h = grid.voxel_size;
     const double dx[2] = {offset[0] * offset[0], (offset[0] - h) * (offset[0] - h)};
     const double dy[2] = {offset[1] * offset[1], (offset[1] - h) * (offset[1] - h)};
@@ -319,13 +334,9 @@ class Search {
     // Farther corners lose less across flat gaps, nearer ones less where A curves away; {1, 2, 3.5, 5}
     // voxels measured as well as {2, 4, 8}, {1.5, 3} and {1, 2, 3.5, 5, 8}, within the noise.
     for (double voxels : {1.0, 2.0, 3.5, 5.0}) {
-      const Eigen::Vector3d target = cell.point + voxels * direction;
-      int c[3];
-      for (int axis = 0; axis < 3; ++axis) {
-        c[axis] = static_cast<int>(std::clamp(std::floor(target[axis] + 0.5), 0.0, double(grid.dims[axis])));
-      }
-      const double reach = std::sqrt(farthestSquared(grid.cornerPosition(c[0], c[1], c[2])));
-      bound = std::max(bound, a_.corner_distance[grid.cornerIndex(c[0], c[1], c[2])] - reach);
+      const GridCorner corner = nearestCorner(cell.point + voxels * direction);
+      const double reach = std::sqrt(farthestSquared(corner.position));
+      bound = std::max(bound, a_.corner_distance[corner.index] - reach);
     }
     return bound;
   }
@@ -756,6 +767,10 @@ class Search {
   Scratch& scratch_;
   Aabb grid_box_;
   double inverse_voxel_size_ = 0;
+  // Grid corners as doubles: the largest corner index on each axis, and how far apart consecutive corners
+  // along each axis sit in corner_distance (an index is the dot product with it, exact in double).
+  Eigen::Array3d corner_limit_ = Eigen::Array3d::Zero();
+  Eigen::Array3d corner_stride_ = Eigen::Array3d::Zero();
   bool exact_ = true;  // no abs_err / rel_err: pruneThreshold's common case, read on every pair
   QueryCounters counters_;
   double best_ = kInfinity;

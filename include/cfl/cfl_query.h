@@ -84,11 +84,11 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
 /// saves: the query then searches with the previous answer as a hint (see hint_triangle_a), as fast as a
 /// hinted query.
 ///
-/// In `cfl bench --moving 10000 --clock cpu` at bc4d9a9 (bunny 1% apart, B moving 0.05% of the diagonal
+/// In `cfl bench --moving 10000 --clock cpu` at 7be000d (bunny 1% apart, B moving 0.05% of the diagonal
 /// and turning 0.07 degrees per frame) the certificate answered 8246 of 10000 frames; the median query took
-/// 14.3 us against 27.3 us cold (1.91x), the mean 24.0 against 32.3 us (1.35x: the searches that refresh
-/// the certificate cost more than a cold query). At 1000 frames (0.46% and 0.72 degrees) it never pays and
-/// matches the hinted query (1.18x to 1.21x over three runs).
+/// 12.5 us against 25.0 us cold (2.00x; 1.89x and 2.02x in two more runs), the mean 21.8 against 29.9 us
+/// (1.37x: the searches that refresh the certificate cost more than a cold query). At 1000 frames (0.46%
+/// and 0.72 degrees) it never pays and matches the hinted query (1.20x to 1.22x over three runs).
 ///
 /// Plain data written by computeDistance: create one per pair of models and pass it to every query of
 /// that pair. Calling with other models, another mode or a non-zero rel_err / abs_err resets it (the

@@ -32,6 +32,12 @@
 #include <cmath>
 #include <limits>
 
+// The bounds' grid lookups (roundToInteger) and the distance kernels' error-free transformations rely on
+// IEEE double arithmetic as written; -ffast-math would reassociate them into wrong answers.
+#if defined(__FAST_MATH__)
+#error "cfl must be compiled without -ffast-math: its exact queries rely on IEEE double rounding"
+#endif
+
 namespace cfl {
 namespace {
 

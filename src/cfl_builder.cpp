@@ -595,6 +595,8 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
                                     geometry.mesh.vertices.size() * sizeof(Eigen::Vector3d) +
                                     geometry.mesh.triangles.size() * sizeof(std::array<int, 3>) +
                                     geometry.corners.size() * sizeof(std::array<Eigen::Vector3d, 3>) +
+                                    geometry.spheres.size() * sizeof(Eigen::Vector4d) +
+                                    geometry.planes.size() * sizeof(Eigen::Vector4d) +
                                     geometry.bvh.nodes.size() * sizeof(BvhNode) +
                                     geometry.bvh.triangle_ids.size() * sizeof(std::int32_t));
   stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -275,7 +275,18 @@ TEST(CflBuilder, StorageIsWellFormedAndStatisticsMatchIt) {
       EXPECT_EQ(stats.longest_list, longest);
       EXPECT_EQ(stats.distinct_lists, static_cast<std::int64_t>(distinct.size()));
       EXPECT_GE(static_cast<std::int64_t>(model.list_offsets.size()) - 1, stats.distinct_lists);
-      EXPECT_GT(stats.memory_bytes, static_cast<std::int64_t>(model.list_triangles.size() * sizeof(std::int32_t)));
+      // Every array the model holds, the voxels' and the mesh's: what a user budgets for.
+      const auto bytes = [](const auto& array) {
+        return static_cast<std::int64_t>(array.size() * sizeof(array[0]));
+      };
+      const MeshModel& geometry = model.geometry;
+      const std::int64_t arrays =
+          bytes(model.voxel_list) + bytes(model.list_offsets) + bytes(model.list_triangles) +
+          bytes(model.list_entry_bounds) + bytes(model.voxel_lower_bound) + bytes(model.corner_distance) +
+          bytes(geometry.mesh.vertices) + bytes(geometry.mesh.triangles) + bytes(geometry.corners) +
+          bytes(geometry.spheres) + bytes(geometry.planes) + bytes(geometry.bvh.nodes) +
+          bytes(geometry.bvh.triangle_ids);
+      EXPECT_EQ(stats.memory_bytes, arrays);
       EXPECT_GE(stats.build_seconds, 0.0);
     }
   }

@@ -1,5 +1,7 @@
 #include "cfl/mesh_model.h"
 
+#include "detail/exact_arithmetic.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -23,9 +25,13 @@ MeshModel makeMeshModel(TriangleMesh mesh) {
     const double radius = std::sqrt(std::max({(c[0] - center).squaredNorm(), (c[1] - center).squaredNorm(),
                                               (c[2] - center).squaredNorm()}));
     model.spheres[t] << center, radius;
-    const Eigen::Vector3d normal = (c[1] - c[0]).cross(c[2] - c[0]);
+    // The query prunes a pair when the plane puts the other triangle beyond the best distance so far: a
+    // normal off by an angle a moves that bound by a times the corners' offsets. The plain cross product of
+    // a sliver is off by about eps / sin(angle), enough to prune the closest pair of a triangle whose
+    // height is 1e-10 of its length; the accurate one is off by a few eps.
+    const Eigen::Vector3d normal = detail::accurateNormal(c.data());
     const double length = normal.norm();
-    // Below this the direction is rounding noise, and a wrong plane would prune a real pair.
+    // Thinner than this (height 1e-12 of the longest edge) it gets no plane: its pairs go without that bound.
     const double longest_edge = std::sqrt(std::max({(c[1] - c[0]).squaredNorm(), (c[2] - c[1]).squaredNorm(),
                                                     (c[0] - c[2]).squaredNorm()}));
     if (length > 1e-12 * longest_edge * longest_edge && length > 0) {

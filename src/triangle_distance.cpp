@@ -26,17 +26,13 @@
 
 #include "cfl/triangle_distance.h"
 
+#include "detail/exact_arithmetic.h"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
-
-// The bounds' grid lookups (roundToInteger) and the distance kernels' error-free transformations rely on
-// IEEE double arithmetic as written; -ffast-math would reassociate them into wrong answers.
-#if defined(__FAST_MATH__)
-#error "cfl must be compiled without -ffast-math: its exact queries rely on IEEE double rounding"
-#endif
 
 namespace cfl {
 namespace {
@@ -82,54 +78,6 @@ struct Tri {
   Vec m[3];
 };
 
-// Error-free transformations (Knuth, Dekker; see Shewchuk 1997): the exact result is hi + lo.
-struct TwoDouble {
-  double hi, lo;
-};
-
-inline TwoDouble twoDiff(double a, double b) {
-  const double s = a - b;
-  const double bv = s - a;
-  const double av = s - bv;
-  return {s, (a - av) - (b + bv)};
-}
-
-inline TwoDouble twoProduct(double a, double b) {
-  const double p = a * b;
-#ifdef FP_FAST_FMA
-  return {p, std::fma(a, b, -p)};
-#else
-  // Without hardware FMA the compiler cannot contract these products, so Dekker's split is exact.
-  constexpr double kSplit = 134217729.0;  // 2^27 + 1
-  const double ca = kSplit * a, cb = kSplit * b;
-  const double ah = ca - (ca - a), al = a - ah;
-  const double bh = cb - (cb - b), bl = b - bh;
-  return {p, ((ah * bh - p) + ah * bl + al * bh) + al * bl};
-#endif
-}
-
-// x y - z w for two-double x, y, z, w, rounded once at the end: about eps^2 of |x y| + |z w| beyond the final
-// rounding.
-inline double crossTerm(const TwoDouble& x, const TwoDouble& y, const TwoDouble& z, const TwoDouble& w) {
-  const TwoDouble p = twoProduct(x.hi, y.hi);
-  const TwoDouble q = twoProduct(z.hi, w.hi);
-  const double p_lo = p.lo + (x.hi * y.lo + x.lo * y.hi);
-  const double q_lo = q.lo + (z.hi * w.lo + z.lo * w.hi);
-  const TwoDouble d = twoDiff(p.hi, q.hi);
-  return d.hi + (d.lo + (p_lo - q_lo));
-}
-
-// The normal of a thin triangle, correct to about eps in direction however thin (down to relative heights of
-// ~eps): exact edge vectors as two-doubles, products to twice the working precision.
-Vec accurateNormal(const Vec* v) {
-  TwoDouble a[3], b[3];
-  for (int i = 0; i < 3; ++i) {
-    a[i] = twoDiff(v[1][i], v[0][i]);
-    b[i] = twoDiff(v[2][i], v[0][i]);
-  }
-  return Vec(crossTerm(a[1], b[2], a[2], b[1]), crossTerm(a[2], b[0], a[0], b[2]), crossTerm(a[0], b[1], a[1], b[0]));
-}
-
 // Fills everything but m.
 inline void initTri(const Vec* v, Tri& t) {
   t.v = v;
@@ -148,7 +96,7 @@ inline void initTri(const Vec* v, Tri& t) {
     t.nerr2 = -1.0;  // computed by normalError2() when needed
     t.degenerate = false;
   } else {
-    t.n = accurateNormal(v);
+    t.n = detail::accurateNormal(v);
     t.nn = t.n.squaredNorm();
     t.nerr2 = 16.0 * kEps * kEps;
     const double m2 = std::max({t.e2[0], t.e2[1], t.e2[2]});

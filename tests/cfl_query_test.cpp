@@ -524,6 +524,55 @@ TEST(ComputeDistance, WarmStartHintsNeverChangeTheAnswer) {
   EXPECT_EQ(failures.count(), 0);
 }
 
+// A sliver's plane bounds its pairs from below only as well as its normal's direction is known. Here the
+// closest triangle of A to B is a sliver (height 1e-6 to 1e-12 of its length) and a decoy triangle, tried
+// first through the hint, sits 0 to 1e-5 of the gap farther: a normal off by more than that relative
+// difference would prune the sliver's pair and return the decoy. With plain double cross products about
+// one trial in six did.
+TEST(ComputeDistance, SliverPlanesNeverPruneTheClosestPair) {
+  test::Rng rng(71);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int failures = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const Eigen::Matrix3d R = test::randomRotation(rng);
+    const Eigen::Vector3d offset = 20 * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)) - Eigen::Vector3d::Constant(10);
+    const double height = std::pow(10.0, -6 - 6 * unit(rng));
+    const double gap = 1e-3 * (0.5 + unit(rng));
+    const Eigen::Vector3d probe(0.2 + 0.6 * unit(rng), 0.3 * height, gap);
+    const Eigen::Vector3d decoy = probe + Eigen::Vector3d(0, gap * (1 + 1e-5 * unit(rng)), 0);
+    auto place = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d { return R * x + offset; };
+    TriangleMesh mesh_a;
+    mesh_a.vertices = {place({0, 0, 0}), place({1, 0, 0}), place({0.35 + 0.3 * unit(rng), height, 0}),
+                       place(decoy), place(decoy + Eigen::Vector3d(0, 0.01, 0.001)),
+                       place(decoy + Eigen::Vector3d(0.01, 0.01, 0))};
+    mesh_a.triangles = {{0, 1, 2}, {3, 4, 5}};
+    TriangleMesh mesh_b;
+    mesh_b.vertices = {place(probe), place(probe + Eigen::Vector3d(1e-4, 0, 0)),
+                       place(probe + Eigen::Vector3d(0, 0, 1e-4))};
+    mesh_b.triangles = {{0, 1, 2}};
+    BuildOptions build;
+    build.resolution = 16;
+    const CflModel a = buildCflModel(mesh_a, build);
+    const MeshModel b = makeMeshModel(mesh_b);
+    const Eigen::Isometry3d identity = Eigen::Isometry3d::Identity();
+    const DistanceResult truth = bruteForceDistance(a.geometry, identity, b, identity);
+    ASSERT_EQ(truth.triangle_a, 0) << "the sliver must be the closest triangle, trial " << trial;
+    for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+      DistanceOptions options;
+      options.mode = mode;
+      options.hint_triangle_a = 1;
+      options.hint_triangle_b = 0;
+      const DistanceResult result = computeDistance(a, identity, b, identity, options);
+      if (std::abs(result.distance - truth.distance) > 1e-9 * a.geometry.bounds.diagonal() && ++failures <= 5) {
+        ADD_FAILURE() << "trial " << trial << " (height " << height << ", mode " << int(mode)
+                      << "): distance " << result.distance << " on triangle " << result.triangle_a
+                      << ", brute force " << truth.distance;
+      }
+    }
+  }
+  EXPECT_EQ(failures, 0);
+}
+
 TEST(ComputeDistance, ConcurrentQueriesOnSharedModelsGiveTheSequentialAnswers) {
   const Shape& a = shape("knot");
   const Shape& b = shape("messy");

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <tuple>
 
 // The bounds' grid lookups (roundToInteger) and the distance kernels' error-free transformations rely on
 // IEEE double arithmetic as written; -ffast-math would reassociate them into wrong answers.
@@ -66,6 +67,13 @@ inline Eigen::Array3d roundToInteger(const Eigen::Array3d& x) {
 }
 
 // Scratch reused across queries on one thread, so queries allocate only while it grows.
+// A pair of triangles (of A, of B) a certifying search found within its margin, with its distance.
+struct NearPair {
+  double distance;
+  int a, b;
+  double group_distance;  // of the nearest pair with the same b (set when the search is over)
+};
+
 struct Scratch {
   std::vector<std::uint32_t> stamp;  // per triangle of A: the B leaf that last tested it
   std::uint32_t generation = 0;
@@ -94,7 +102,8 @@ struct Scratch {
   };
   std::vector<HeapEntry> heap;
   std::vector<std::pair<int, int>> node_pairs;  // computeCollision's pending node pairs
-  std::vector<std::pair<double, int>> near_triangles;  // a certifying search's (distance, triangle of B)
+  std::vector<NearPair> near_pairs;  // a certifying search's pairs within its margin
+  std::vector<double> group_distance;
 
   void beginQuery(std::size_t triangle_count) {
     if (stamp.size() < triangle_count) {
@@ -135,10 +144,9 @@ class Search {
   }
 
   // A search step whose lower bound is at least this is skipped (FCL's canStop rule). A certifying search
-  // (DistanceCache) looks `margin_` further, so that what it skips is known to be that far; but once a
-  // triangle of B is `listed` in the certificate, its other pairs only need to beat the best distance.
-  double pruneThreshold(bool listed = false) const {
-    if (exact_) return listed ? best_ : best_ + margin_;
+  // (DistanceCache) looks `margin_` further, so that what it skips is known to be that far.
+  double pruneThreshold() const {
+    if (exact_) return best_ + margin_;
     return std::max(best_ - options_.abs_err, best_ / (1 + options_.rel_err));
   }
 
@@ -166,20 +174,19 @@ class Search {
     out.offset = out.normal.dot(out.corners[0]);
   }
 
-  // Exact distance between triangle a of A and triangle b of B (already in A's frame). Returns whether it
-  // listed tb in the certificate of a certifying search.
+  // Exact distance between triangle a of A and triangle b of B (already in A's frame); a certifying search
+  // lists the pair when it is within the margin.
   // Out of line: the loops that call it run it on a few percent of their candidates, and inlined it would
   // make them save and restore its registers on every candidate.
 #if defined(__GNUC__)
   __attribute__((noinline))
 #endif
-  bool testPair(int a, const PreparedTriangle& tb) {
+  void testPair(int a, const PreparedTriangle& tb) {
     ++counters_.triangle_pairs;
     Eigen::Vector3d p, q;
     const double squared = triangleTriangleSquaredDistance(mesh_a_.corners[a].data(), tb.corners, &p, &q);
     const double distance = std::sqrt(squared);
-    const bool listed = near_triangles_ != nullptr && distance < best_ + margin_;
-    if (listed) near_triangles_->push_back({distance, tb.id});
+    if (near_pairs_ != nullptr && distance < best_ + margin_) near_pairs_->push_back({distance, a, tb.id, 0.0});
     if (distance < best_ || best_a_ < 0) {
       best_ = distance;
       best_a_ = a;
@@ -187,7 +194,6 @@ class Search {
       point_a_ = p;
       point_b_ = q;
     }
-    return listed;
   }
 
   // Whether triangle a of A may be closer to `tb` than `threshold`, by cheap lower bounds taken cheapest
@@ -218,10 +224,15 @@ class Search {
     return true;
   }
 
-  // testPair behind mayBeCloser; `listed` says whether tb is already in the certificate, and is updated.
-  void testPairIfClose(int a, const PreparedTriangle& tb, bool& listed) {
-    if (!mayBeCloser(a, tb, pruneThreshold(listed))) return;
-    listed = testPair(a, tb) || listed;
+  void testPairIfClose(int a, const PreparedTriangle& tb) {
+    if (!mayBeCloser(a, tb, pruneThreshold())) return;
+    // A certifying search lists every pair that may lie within its margin, but tests only those that may
+    // beat the best distance: the others are listed on their lower bounds, untested.
+    if (near_pairs_ != nullptr && !mayBeCloser(a, tb, best_)) {
+      near_pairs_->push_back({best_ + margin_, a, tb.id, 0.0});
+      return;
+    }
+    testPair(a, tb);
   }
 
   // The larger of a distance-field bound at `center` and the distance from `center` to A's bounding box;
@@ -360,9 +371,9 @@ class Search {
     return std::max(bound, farCornerLowerBound(corners, center));
   }
 
-  // Triangle tb of B against the CFLs of the voxels its bounding box covers. Every point of the triangle
-  // lies in one of them, and each point's closest triangle of A is in its voxel's list, so the minimum over
-  // these lists is the triangle's exact distance to A.
+  // Triangle tb of B against the CFLs of the voxels the box [lo, hi] covers (its bounding box, grown in a
+  // certifying search). Every point of the triangle lies in one of them, and each point's closest triangle
+  // of A is in its voxel's list, so the minimum over these lists is the triangle's exact distance to A.
   //
   // In stages, each a loop without data-dependent branches that writes its survivors to a buffer: first
   // the lists' entries (each triangle once), then the bounding spheres. Most entries fail the sphere test
@@ -419,8 +430,7 @@ class Search {
       ids[near] = t;
       near += dx * dx + dy * dy + dz * dz < reach * reach;
     }
-    bool listed = false;
-    for (std::size_t n = 0; n < near && best_ > 0; ++n) testPairIfClose(ids[n], tb, listed);  // 0 ends the query
+    for (std::size_t n = 0; n < near && best_ > 0; ++n) testPairIfClose(ids[n], tb);  // 0 ends the query
   }
 
   // Triangle tb of B against A's Bvh: exact wherever the triangle is, for the parts outside the grid.
@@ -429,15 +439,14 @@ class Search {
     int stack[128];  // depth-first, one pending sibling per level of a median-split tree
     int top = 0;
     stack[top++] = 0;
-    bool listed = false;
     while (top > 0) {
       const BvhNode& node = nodes[stack[--top]];
       ++counters_.voxel_tests;
       const double gap = std::sqrt(detail::pointBoxSquaredDistance(tb.center, node.box)) - tb.radius;
-      if (gap >= pruneThreshold(listed)) continue;
+      if (gap >= pruneThreshold()) continue;
       if (node.isLeaf()) {
         for (int n = node.first; n < node.first + node.count; ++n) {
-          testPairIfClose(mesh_a_.bvh.triangle_ids[n], tb, listed);
+          testPairIfClose(mesh_a_.bvh.triangle_ids[n], tb);
         }
         continue;
       }
@@ -456,8 +465,12 @@ class Search {
   void testTriangle(int b) {
     PreparedTriangle tb;
     prepare(b, tb);
-    const Eigen::Vector3d lo = tb.corners[0].cwiseMin(tb.corners[1]).cwiseMin(tb.corners[2]);
-    const Eigen::Vector3d hi = tb.corners[0].cwiseMax(tb.corners[1]).cwiseMax(tb.corners[2]);
+    // A certifying search lists the pairs the triangle may form at the poses its certificate answers, B
+    // moved by up to the margin: the closest triangles of A to every point it can reach are in the lists of
+    // the voxels within the margin of it (or, past the grid, anywhere: the Bvh path).
+    const Eigen::Vector3d reach = Eigen::Vector3d::Constant(margin_);
+    const Eigen::Vector3d lo = tb.corners[0].cwiseMin(tb.corners[1]).cwiseMin(tb.corners[2]) - reach;
+    const Eigen::Vector3d hi = tb.corners[0].cwiseMax(tb.corners[1]).cwiseMax(tb.corners[2]) + reach;
     if ((lo.array() >= grid_box_.min.array()).all() && (hi.array() <= grid_box_.max.array()).all()) {
       testTriangleAgainstLists(tb, lo, hi);
     } else {
@@ -622,10 +635,8 @@ class Search {
       for (int n = node_b.subtree_first; n < node_b.subtree_first + node_b.subtree_count; ++n) {
         PreparedTriangle tb;
         prepare(b_.bvh.triangle_ids[n], tb);
-        // Its other pairs, in other node pairs, still look `margin_` further: listing it again is harmless.
-        bool listed = false;
         for (int m = node_a.subtree_first; m < node_a.subtree_first + node_a.subtree_count; ++m) {
-          testPairIfClose(mesh_a_.bvh.triangle_ids[m], tb, listed);
+          testPairIfClose(mesh_a_.bvh.triangle_ids[m], tb);
         }
       }
       return;
@@ -743,13 +754,24 @@ class Search {
   double best() const { return best_; }
   bool found() const { return best_a_ >= 0; }
 
-  // From now on, search `margin` past the best distance, and append to `near` each triangle of B found
-  // within `margin` of the best distance at the time, with that pair's distance (repeats allowed). After a
-  // complete search, every triangle of B missing from `near` is at least best() + margin from A: its pairs
-  // were each pruned by a lower bound of at least that, or tested and found that far.
-  void certify(double margin, std::vector<std::pair<double, int>>* near) {
+  // From now on, search `margin` past the best distance, and append to `near` each pair found within
+  // `margin` of the best distance at the time (repeats allowed). After a complete search, every pair missing
+  // from `near` is at least best() + margin apart: it was pruned by a lower bound of at least that, or
+  // tested and found that far.
+  void certify(double margin, std::vector<NearPair>* near) {
     margin_ = margin;
-    near_triangles_ = near;
+    near_pairs_ = near;
+  }
+
+  // The pairs (triangle of A, triangle of B) in [begin, end), grouped by B's triangle, each behind
+  // mayBeCloser: a certificate's pairs at a new pose.
+  void testPairs(const std::array<int, 2>* begin, const std::array<int, 2>* end) {
+    PreparedTriangle tb;
+    tb.id = -1;
+    for (const std::array<int, 2>* pair = begin; pair != end && best_ > 0; ++pair) {
+      if ((*pair)[1] != tb.id) prepare((*pair)[1], tb);
+      testPairIfClose((*pair)[0], tb);
+    }
   }
 
   DistanceResult result(const Eigen::Isometry3d& X_WA) const {
@@ -781,7 +803,7 @@ class Search {
   QueryCounters counters_;
   double best_ = kInfinity;
   double margin_ = 0;
-  std::vector<std::pair<double, int>>* near_triangles_ = nullptr;
+  std::vector<NearPair>* near_pairs_ = nullptr;
   int best_a_ = -1, best_b_ = -1;
   Eigen::Vector3d point_a_, point_b_;
 };
@@ -897,9 +919,7 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
   cache.previous_translation = X_AB.translation;
 
   // The previous answer's pair is tested first, certificate or not: it bounds the distance close to the
-  // answer before any list is scanned, so that even the first listed triangle's scan is pruned. In `cfl
-  // bench --moving 10000 --clock cpu` (8246 of 10000 frames reused) that took the median cached frame from
-  // 13.8 us to 12.1-12.5 us (one disturbed run of five: 17.7 us).
+  // answer before anything else is tested, so that the pair bounds prune most of the listed pairs.
   DistanceOptions search_options = options;
   if (options.hint_triangle_a < 0) {
     search_options.hint_triangle_a = cache.previous_triangle_a;
@@ -914,14 +934,12 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
     return r;
   };
   if (cache.certified) {
-    // Every triangle of B outside the list is still at least level - motion from A; those in it are
-    // bounded first, as in a search (the list is nearest first).
-    for (int t : cache.near_triangles) {
-      if (search.triangleLowerBound(t) < search.pruneThreshold()) search.testTriangle(t);
-    }
+    // Every pair outside the list is still at least level - motion apart; those in it are tested behind
+    // the pair bounds, nearest first.
+    search.testPairs(cache.near_pairs.data(), cache.near_pairs.data() + cache.near_pairs.size());
     const double motion =
         motionBound(b.bounds, cache.certified_rotation, cache.certified_translation, X_AB.rotation, X_AB.translation);
-    if (search.found() && (search.best() <= 0 || search.best() <= cache.level - motion)) {
+    if (search.found() && (search.best() <= 0 || (motion <= cache.reach && search.best() <= cache.level - motion))) {
       ++cache.reused;
       return answer();
     }
@@ -930,25 +948,40 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
   const double voxel = a.grid.voxel_size;
   // An infinite step (the first query) fails the comparison too.
   const double margin = step <= kLargestCertifiedStep * voxel ? std::sqrt(step * voxel / kMarginCost) : 0.0;
-  auto& near = tls_scratch.near_triangles;
+  auto& near = tls_scratch.near_pairs;
   near.clear();
   search.certify(margin, &near);
   search.runHierarchical();
-  // Each triangle once, nearest first: the next query's first triangle then gives a bound that prunes most
-  // pairs of the others.
-  std::sort(near.begin(), near.end(), [](const auto& x, const auto& y) {
-    return x.second != y.second ? x.second < y.second : x.first < y.first;
+  // Each pair once, grouped by B's triangle (placed once per group), the groups in the order of their
+  // nearest pair and the pairs of a group nearest first: the first pairs then give a bound that prunes most
+  // of the others.
+  std::sort(near.begin(), near.end(), [](const NearPair& x, const NearPair& y) {
+    return std::tie(x.b, x.a, x.distance) < std::tie(y.b, y.a, y.distance);
   });
-  near.erase(std::unique(near.begin(), near.end(), [](const auto& x, const auto& y) { return x.second == y.second; }),
+  near.erase(std::unique(near.begin(), near.end(),
+                         [](const NearPair& x, const NearPair& y) { return x.b == y.b && x.a == y.a; }),
              near.end());
-  std::sort(near.begin(), near.end());
-  cache.near_triangles.clear();
-  for (const auto& entry : near) cache.near_triangles.push_back(entry.second);
+  auto& group_distance = tls_scratch.group_distance;
+  group_distance.clear();
+  for (std::size_t n = 0; n < near.size(); ++n) {
+    if (n == 0 || near[n].b != near[n - 1].b) group_distance.push_back(near[n].distance);
+    group_distance.back() = std::min(group_distance.back(), near[n].distance);
+  }
+  for (std::size_t n = 0, group = 0; n < near.size(); ++n) {
+    if (n > 0 && near[n].b != near[n - 1].b) ++group;
+    near[n].group_distance = group_distance[group];
+  }
+  std::sort(near.begin(), near.end(), [](const NearPair& x, const NearPair& y) {
+    return std::tie(x.group_distance, x.b, x.distance, x.a) < std::tie(y.group_distance, y.b, y.distance, y.a);
+  });
+  cache.near_pairs.clear();
+  for (const NearPair& pair : near) cache.near_pairs.push_back({pair.a, pair.b});
   // Without a margin the certificate would hold only while B approaches A: the previous pair (the hint) is
   // then all the next query uses. A search that found distance 0 stops at once: its list then certifies
   // nothing beyond 0.
   cache.certified = search.found() && margin > 0;
   cache.level = search.best() > 0 ? search.best() + margin : 0.0;
+  cache.reach = margin;
   cache.certified_rotation = X_AB.rotation;
   cache.certified_translation = X_AB.translation;
   return answer();

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <climits>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <random>
 #include <sstream>
@@ -718,12 +719,86 @@ std::vector<Pose> smoothMotion(const Shape& a, const Shape& b, const Pose& start
 
 // Runs `frames` through one cache and checks every answer against brute force. Returns the frames the
 // certificate answered.
+// What makes a certificate sound, checked on points: wherever a point of B can get by moving no more than
+// the reach (a distance r), if it is then within level - r of A (a pose whose answer the cache would give
+// without a search), some triangle of A closest to it is listed with the point's triangle of B. Points on
+// each triangle of B (corners and random ones), each moved in random directions; their closest triangles by
+// brute force over A.
+void checkCertificateCoversTheReach(const Shape& a, const Shape& b, const Pose& pose, const DistanceCache& cache,
+                                    const std::string& label, Failures& failures) {
+  test::Rng rng(static_cast<std::uint64_t>(cache.searched) * 7919 + cache.near_pairs.size());
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const std::size_t na = a.model.corners.size(), nb = b.model.corners.size();
+  std::vector<std::vector<int>> listed(nb);
+  for (const auto& [ta, tb] : cache.near_pairs) listed[std::size_t(tb)].push_back(ta);
+  std::vector<std::array<Eigen::Vector3d, 3>> world_a(na);
+  for (std::size_t i = 0; i < na; ++i) worldTriangle(a.model, int(i), pose.X_WA, world_a[i].data());
+  for (std::size_t j = 0; j < nb; ++j) {
+    Eigen::Vector3d q[3];
+    worldTriangle(b.model, int(j), pose.X_WB, q);
+    for (int sample = 0; sample < 6; ++sample) {
+      double u = unit(rng), v = unit(rng);
+      if (sample < 3) u = sample == 1, v = sample == 2;  // the corners
+      if (u + v > 1) u = 1 - u, v = 1 - v;
+      const double r = cache.reach * unit(rng);
+      const Eigen::Vector3d moved = q[0] + u * (q[1] - q[0]) + v * (q[2] - q[0]) + r * test::randomRotation(rng).col(0);
+      double nearest = std::numeric_limits<double>::infinity();
+      std::vector<double> to(na);
+      for (std::size_t i = 0; i < na; ++i) {
+        to[i] = pointToTriangle(moved, world_a[i].data());
+        nearest = std::min(nearest, to[i]);
+      }
+      if (!(nearest < cache.level - r)) continue;
+      bool covered = false;
+      for (int ta : listed[j]) covered = covered || to[std::size_t(ta)] <= nearest + 1e-12 * a.diagonal;
+      if (!covered) {
+        failures.add(label + ": a point of B's triangle " + std::to_string(j) + " moved by " + std::to_string(r) +
+                     " is " + std::to_string(nearest) + " from A, within level - r (level " +
+                     std::to_string(cache.level) + "), but none of its closest triangles of A is listed with it");
+        return;
+      }
+    }
+  }
+}
+
+// The certificate a search leaves must give the exact answer at every pose B reaches by moving no point
+// more than its reach: the pairs it lists then hold the closest pair even when that pair is another one than
+// at the pose searched. Poses around the one searched, B turned about its box's center and shifted by up to
+// 1.2 times the reach (past it the query must search again), each answered from a copy of the cache.
+void checkCertificate(const Shape& a, const Shape& b, const Pose& pose, const DistanceCache& cache,
+                      const std::string& label, Failures& failures) {
+  test::Rng rng(static_cast<std::uint64_t>(cache.searched) * 7919 + cache.near_pairs.size());
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const Eigen::Vector3d center = b.model.bounds.center();
+  const double radius = 0.5 * b.model.bounds.diagonal();
+  for (int sample = 0; sample < 8; ++sample) {
+    const double motion = 1.2 * unit(rng) * cache.reach;
+    const double turned = unit(rng);
+    const Eigen::Vector3d axis = test::randomRotation(rng).col(0);
+    const Eigen::Vector3d shift = test::randomRotation(rng).col(0) * (1 - turned) * motion;
+    Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+    step.linear() = Eigen::AngleAxisd(radius > 0 ? turned * motion / radius : 0.0, axis).toRotationMatrix();
+    step.translation() = center - step.linear() * center + shift;
+    Pose moved = pose;
+    moved.X_WB = pose.X_WB * step;
+    DistanceCache copy = cache;
+    const DistanceResult truth = bruteForceDistance(a.model, moved.X_WA, b.model, moved.X_WB);
+    checkResult(computeDistance(a.cfl, moved.X_WA, b.model, moved.X_WB, copy), truth, a, b, moved,
+                label + ", within the certificate's reach", failures);
+  }
+}
+
 std::int64_t checkCachedFrames(const Shape& a, const Shape& b, const std::vector<Pose>& frames, DistanceCache& cache,
                                const std::string& label, Failures& failures) {
   const std::int64_t reused_before = cache.reused;
   for (const Pose& pose : frames) {
     const DistanceResult truth = bruteForceDistance(a.model, pose.X_WA, b.model, pose.X_WB);
+    const std::int64_t searched_before = cache.searched;
     checkResult(computeDistance(a.cfl, pose.X_WA, b.model, pose.X_WB, cache), truth, a, b, pose, label, failures);
+    if (cache.searched > searched_before && cache.certified) {
+      checkCertificateCoversTheReach(a, b, pose, cache, label, failures);
+      checkCertificate(a, b, pose, cache, label, failures);
+    }
   }
   return cache.reused - reused_before;
 }

@@ -7,6 +7,7 @@
 
 #include <Eigen/Geometry>
 
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -72,23 +73,27 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
 /// What one query leaves for the next query of the same pair of models, so that a moving pair (a
 /// simulator's contact pair, one query per frame) can skip most of the search while staying exact.
 ///
-/// After a full search, the cache holds a certificate: the few triangles of B that were within
-/// `level` of A, and the fact that every other triangle of B was at least `level` away, at the
-/// relative pose `certified_rotation` / `certified_translation` (B in A's frame). Moving B by at most
-/// `motion` (a bound over every point of B, from the two poses) changes any triangle's distance to A by
-/// at most `motion`, so the next query only tests the cached triangles; when their best distance is at
-/// most `level - motion`, nothing else can be closer and it is the exact answer. Otherwise the query
-/// searches again, starting from the best pair found, and refreshes the certificate: it looks a margin past
-/// its best distance, sized from the motion since the previous query so that the certificate lasts several
-/// frames. When B moves more than about 5% of a voxel per query, a certificate would cost more than it
-/// saves: the query then searches with the previous answer as a hint (see hint_triangle_a), as fast as a
-/// hinted query.
+/// After a full search, the cache holds a certificate for the relative pose searched
+/// (`certified_rotation` / `certified_translation`, B in A's frame): the pairs of triangles that may come
+/// within `level` of each other while B moves by up to `reach` (a bound over every point of B), and the
+/// fact that no other pair can. The search lists them as it goes: every pair it does not prune below
+/// `level`, taking each triangle of B against the voxel lists within `reach` of it (where the closest
+/// triangles of A to every point it can move to are listed) or, past the grid, against A's Bvh. The next
+/// query moves B by `motion` from that pose (computed from the two poses) and tests only the listed pairs;
+/// when `motion <= reach` and their best distance is at most `level - motion`, nothing else can be closer
+/// and it is the exact answer. Otherwise the query searches again, starting from the best pair found, and
+/// refreshes the certificate: it looks a margin (the reach) past its best distance, sized from the motion
+/// since the previous query so that the certificate lasts several frames. When B moves more than about 5%
+/// of a voxel per query, a certificate would cost more than it saves: the query then searches with the
+/// previous answer as a hint (see hint_triangle_a), as fast as a hinted query.
 ///
-/// In `cfl bench --moving 10000 --clock cpu` at 7be000d (bunny 1% apart, B moving 0.05% of the diagonal
-/// and turning 0.07 degrees per frame) the certificate answered 8246 of 10000 frames; the median query took
-/// 12.5 us against 25.0 us cold (2.00x; 1.89x and 2.02x in two more runs), the mean 21.8 against 29.9 us
-/// (1.37x: the searches that refresh the certificate cost more than a cold query). At 1000 frames (0.46%
-/// and 0.72 degrees) it never pays and matches the hinted query (1.20x to 1.22x over three runs).
+/// In `cfl bench --moving 10000 --clock cpu` (bunny 1% apart, B moving 0.05% of the diagonal and turning
+/// 0.07 degrees per frame; three runs at the commit after 040cedc) the certificate answered 8246 of 10000
+/// frames; the median query took 12.7 us against 32.0 us cold (2.53x; 2.63x and 2.62x in the other runs),
+/// the mean 27.7 against 40.0 us (1.44x; 1.44x and 1.46x: the searches that refresh the certificate cost
+/// more than a cold query). Listing pairs rather than B's triangles (which a reused frame had to take
+/// through their voxel lists again) took the median from 2.00x / 1.89x / 2.02x. At 1000 frames (0.46% and
+/// 0.72 degrees) no certificate pays and the query is a hinted one: 1.16x (the hinted query 1.20x).
 ///
 /// Plain data written by computeDistance: create one per pair of models and pass it to every query of
 /// that pair. Calling with other models, another mode or a non-zero rel_err / abs_err resets it (the
@@ -105,8 +110,11 @@ struct DistanceCache {
   bool certified = false;
   Eigen::Matrix3d certified_rotation = Eigen::Matrix3d::Identity();  ///< R_AB at the certificate.
   Eigen::Vector3d certified_translation = Eigen::Vector3d::Zero();   ///< p_AB at the certificate.
-  double level = 0;  ///< Triangles of B not in near_triangles were at least this far from A (length).
-  std::vector<int> near_triangles;  ///< Ids of B's triangles within `level` of A, nearest first.
+  double level = 0;  ///< Pairs not in near_pairs stay at least level - motion apart (length).
+  double reach = 0;  ///< How far B may move from the certified pose before the certificate lapses (length).
+  /// (triangle of A, triangle of B) pairs that may come within `level`, grouped by B's triangle, the groups
+  /// and the pairs in a group nearest first.
+  std::vector<std::array<int, 2>> near_pairs;
   bool has_previous = false;
   Eigen::Matrix3d previous_rotation = Eigen::Matrix3d::Identity();  ///< R_AB of the previous query.
   Eigen::Vector3d previous_translation = Eigen::Vector3d::Zero();
@@ -119,14 +127,14 @@ struct DistanceCache {
     model_b = nullptr;
     triangle_counts[0] = triangle_counts[1] = 0;
     certified = has_previous = false;
-    near_triangles.clear();
+    near_pairs.clear();
     previous_triangle_a = previous_triangle_b = -1;
   }
 };
 
 /// computeDistance for a pair in motion: as exact as the call without a cache, and usually much faster
 /// when B has moved little relative to A since the previous call with the same cache (see
-/// DistanceCache). O(number of cached triangles) when the certificate holds; a full search otherwise.
+/// DistanceCache). O(number of cached pairs) when the certificate holds; a full search otherwise.
 DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
                                const Eigen::Isometry3d& X_WB, DistanceCache& cache,
                                const DistanceOptions& options = {});

@@ -88,7 +88,7 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
 /// previous answer as a hint (see hint_triangle_a), as fast as a hinted query.
 ///
 /// In `cfl bench --moving 10000 --clock cpu` (bunny 1% apart, B moving 0.05% of the diagonal and turning
-/// 0.07 degrees per frame; three runs at the commit after 040cedc) the certificate answered 8246 of 10000
+/// 0.07 degrees per frame; three runs at 34b8c36) the certificate answered 8246 of 10000
 /// frames; the median query took 12.7 us against 32.0 us cold (2.53x; 2.63x and 2.62x in the other runs),
 /// the mean 27.7 against 40.0 us (1.44x; 1.44x and 1.46x: the searches that refresh the certificate cost
 /// more than a cold query). Listing pairs rather than B's triangles (which a reused frame had to take

@@ -66,14 +66,14 @@ inline Eigen::Array3d roundToInteger(const Eigen::Array3d& x) {
   return (x + kShift) - kShift;
 }
 
-// Scratch reused across queries on one thread, so queries allocate only while it grows.
-// A pair of triangles (of A, of B) a certifying search found within its margin, with its distance.
+// A pair of triangles (of A, of B) a certifying search lists, with its distance (or, untested, the level).
 struct NearPair {
   double distance;
   int a, b;
   double group_distance;  // of the nearest pair with the same b (set when the search is over)
 };
 
+// Scratch reused across queries on one thread, so queries allocate only while it grows.
 struct Scratch {
   std::vector<std::uint32_t> stamp;  // per triangle of A: the B leaf that last tested it
   std::uint32_t generation = 0;
@@ -754,10 +754,13 @@ class Search {
   double best() const { return best_; }
   bool found() const { return best_a_ >= 0; }
 
-  // From now on, search `margin` past the best distance, and append to `near` each pair found within
-  // `margin` of the best distance at the time (repeats allowed). After a complete search, every pair missing
-  // from `near` is at least best() + margin apart: it was pruned by a lower bound of at least that, or
-  // tested and found that far.
+  // From now on, search `margin` past the best distance, take each triangle of B against the voxel lists
+  // within `margin` of it, and append to `near` every pair not pruned below the best distance + margin at
+  // the time (repeats allowed). After a complete search, with level = best() + margin: every pair missing
+  // from `near` was pruned by a lower bound of at least level, or tested and found that far, or never came
+  // up because its triangle of A is in no list within `margin` of its triangle of B. So wherever a point
+  // of B moves by r <= margin, either it stays at least level - r from A, or a closest triangle of A to it is
+  // listed with its triangle of B.
   void certify(double margin, std::vector<NearPair>* near) {
     margin_ = margin;
     near_pairs_ = near;
@@ -934,8 +937,9 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
     return r;
   };
   if (cache.certified) {
-    // Every pair outside the list is still at least level - motion apart; those in it are tested behind
-    // the pair bounds, nearest first.
+    // While B has moved by at most the reach, every point of it is at least level - motion from A or has a
+    // closest triangle of A listed with its own (see Search::certify): the best listed pair is the answer
+    // when it is within level - motion. The pairs are tested behind the pair bounds, nearest first.
     search.testPairs(cache.near_pairs.data(), cache.near_pairs.data() + cache.near_pairs.size());
     const double motion =
         motionBound(b.bounds, cache.certified_rotation, cache.certified_translation, X_AB.rotation, X_AB.translation);

@@ -74,14 +74,14 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
 /// simulator's contact pair, one query per frame) can skip most of the search while staying exact.
 ///
 /// After a full search, the cache holds a certificate for the relative pose searched
-/// (`certified_rotation` / `certified_translation`, B in A's frame): the pairs of triangles that may come
-/// within `level` of each other while B moves by up to `reach` (a bound over every point of B), and the
-/// fact that no other pair can. The search lists them as it goes: every pair it does not prune below
-/// `level`, taking each triangle of B against the voxel lists within `reach` of it (where the closest
-/// triangles of A to every point it can move to are listed) or, past the grid, against A's Bvh. The next
-/// query moves B by `motion` from that pose (computed from the two poses) and tests only the listed pairs;
-/// when `motion <= reach` and their best distance is at most `level - motion`, nothing else can be closer
-/// and it is the exact answer. Otherwise the query searches again, starting from the best pair found, and
+/// (`certified_rotation` / `certified_translation`, B in A's frame): a list of triangle pairs such that,
+/// wherever a point of B moves by up to `reach`, either it stays at least `level` minus its motion from A,
+/// or one of its closest triangles of A is listed with its triangle of B. The search builds the list as it
+/// goes: every pair it does not prune below `level`, taking each triangle of B against the voxel lists
+/// within `reach` of it (the lists hold the closest triangles of A to every point of their voxels) or, past
+/// the grid, against A's Bvh. The next query moves B by `motion` from that pose (a bound over every point
+/// of B, from the two poses) and tests only the listed pairs; when `motion <= reach` and their best
+/// distance is at most `level - motion`, nothing else can be closer and it is the exact answer. Otherwise the query searches again, starting from the best pair found, and
 /// refreshes the certificate: it looks a margin (the reach) past its best distance, sized from the motion
 /// since the previous query so that the certificate lasts several frames. When B moves more than about 5%
 /// of a voxel per query, a certificate would cost more than it saves: the query then searches with the
@@ -110,10 +110,10 @@ struct DistanceCache {
   bool certified = false;
   Eigen::Matrix3d certified_rotation = Eigen::Matrix3d::Identity();  ///< R_AB at the certificate.
   Eigen::Vector3d certified_translation = Eigen::Vector3d::Zero();   ///< p_AB at the certificate.
-  double level = 0;  ///< Pairs not in near_pairs stay at least level - motion apart (length).
+  double level = 0;  ///< Length; see above.
   double reach = 0;  ///< How far B may move from the certified pose before the certificate lapses (length).
-  /// (triangle of A, triangle of B) pairs that may come within `level`, grouped by B's triangle, the groups
-  /// and the pairs in a group nearest first.
+  /// The listed (triangle of A, triangle of B) pairs, grouped by B's triangle, the groups and the pairs in
+  /// a group nearest first.
   std::vector<std::array<int, 2>> near_pairs;
   bool has_previous = false;
   Eigen::Matrix3d previous_rotation = Eigen::Matrix3d::Identity();  ///< R_AB of the previous query.

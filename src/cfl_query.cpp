@@ -952,6 +952,15 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
   const double voxel = a.grid.voxel_size;
   // An infinite step (the first query) fails the comparison too.
   const double margin = step <= kLargestCertifiedStep * voxel ? std::sqrt(step * voxel / kMarginCost) : 0.0;
+  cache.near_pairs.clear();
+  // Without a margin the certificate would hold only while B approaches A, and B moves too far per query
+  // for one to pay: the previous pair (the hint) is then all the next query uses, and the search lists
+  // nothing.
+  cache.certified = false;
+  if (margin <= 0) {
+    search.runHierarchical();
+    return answer();
+  }
   auto& near = tls_scratch.near_pairs;
   near.clear();
   search.certify(margin, &near);
@@ -978,12 +987,9 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
   std::sort(near.begin(), near.end(), [](const NearPair& x, const NearPair& y) {
     return std::tie(x.group_distance, x.b, x.distance, x.a) < std::tie(y.group_distance, y.b, y.distance, y.a);
   });
-  cache.near_pairs.clear();
   for (const NearPair& pair : near) cache.near_pairs.push_back({pair.a, pair.b});
-  // Without a margin the certificate would hold only while B approaches A: the previous pair (the hint) is
-  // then all the next query uses. A search that found distance 0 stops at once: its list then certifies
-  // nothing beyond 0.
-  cache.certified = search.found() && margin > 0;
+  // A search that found distance 0 stops at once: its list then certifies nothing beyond 0.
+  cache.certified = search.found();
   cache.level = search.best() > 0 ? search.best() + margin : 0.0;
   cache.reach = margin;
   cache.certified_rotation = X_AB.rotation;

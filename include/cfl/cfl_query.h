@@ -93,7 +93,8 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
 /// the mean 27.7 against 40.0 us (1.44x; 1.44x and 1.46x: the searches that refresh the certificate cost
 /// more than a cold query). Listing pairs rather than B's triangles (which a reused frame had to take
 /// through their voxel lists again) took the median from 2.00x / 1.89x / 2.02x. At 1000 frames (0.46% and
-/// 0.72 degrees) no certificate pays and the query is a hinted one: 1.16x (the hinted query 1.20x).
+/// 0.72 degrees) no certificate pays and the query is a hinted one that lists nothing: 1.19x / 1.25x /
+/// 1.26x (the hinted query without a cache 1.22x / 1.23x / 1.22x).
 ///
 /// Plain data written by computeDistance: create one per pair of models and pass it to every query of
 /// that pair. Calling with other models, another mode or a non-zero rel_err / abs_err resets it (the

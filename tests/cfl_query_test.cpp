@@ -536,7 +536,8 @@ TEST(ComputeDistance, SliverPlanesNeverPruneTheClosestPair) {
   int failures = 0;
   for (int trial = 0; trial < 400; ++trial) {
     const Eigen::Matrix3d R = test::randomRotation(rng);
-    const Eigen::Vector3d offset = 20 * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)) - Eigen::Vector3d::Constant(10);
+    const Eigen::Vector3d offset =
+        20 * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)) - Eigen::Vector3d::Constant(10);
     const double height = std::pow(10.0, -6 - 6 * unit(rng));
     const double gap = 1e-3 * (0.5 + unit(rng));
     const Eigen::Vector3d probe(0.2 + 0.6 * unit(rng), 0.3 * height, gap);
@@ -717,8 +718,6 @@ std::vector<Pose> smoothMotion(const Shape& a, const Shape& b, const Pose& start
   return out;
 }
 
-// Runs `frames` through one cache and checks every answer against brute force. Returns the frames the
-// certificate answered.
 // What makes a certificate sound, checked on points: wherever a point of B can get by moving no more than
 // the reach (a distance r), if it is then within level - r of A (a pose whose answer the cache would give
 // without a search), some triangle of A closest to it is listed with the point's triangle of B. Points on
@@ -741,7 +740,8 @@ void checkCertificateCoversTheReach(const Shape& a, const Shape& b, const Pose& 
       if (sample < 3) u = sample == 1, v = sample == 2;  // the corners
       if (u + v > 1) u = 1 - u, v = 1 - v;
       const double r = cache.reach * unit(rng);
-      const Eigen::Vector3d moved = q[0] + u * (q[1] - q[0]) + v * (q[2] - q[0]) + r * test::randomRotation(rng).col(0);
+      const Eigen::Vector3d direction = test::randomRotation(rng).col(0);
+      const Eigen::Vector3d moved = q[0] + u * (q[1] - q[0]) + v * (q[2] - q[0]) + r * direction;
       double nearest = std::numeric_limits<double>::infinity();
       std::vector<double> to(na);
       for (std::size_t i = 0; i < na; ++i) {
@@ -788,6 +788,8 @@ void checkCertificate(const Shape& a, const Shape& b, const Pose& pose, const Di
   }
 }
 
+// Runs `frames` through one cache and checks every answer against brute force, and each certificate a search
+// leaves with the two checks above. Returns the frames the certificate answered.
 std::int64_t checkCachedFrames(const Shape& a, const Shape& b, const std::vector<Pose>& frames, DistanceCache& cache,
                                const std::string& label, Failures& failures) {
   const std::int64_t reused_before = cache.reused;

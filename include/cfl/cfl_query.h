@@ -81,15 +81,16 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
 /// within `reach` of it (the lists hold the closest triangles of A to every point of their voxels) or, past
 /// the grid, against A's Bvh. The next query moves B by `motion` from that pose (a bound over every point
 /// of B, from the two poses) and tests only the listed pairs; when `motion <= reach` and their best
-/// distance is at most `level - motion`, nothing else can be closer and it is the exact answer. Otherwise the query searches again, starting from the best pair found, and
-/// refreshes the certificate: it looks a margin (the reach) past its best distance, sized from the motion
-/// since the previous query so that the certificate lasts several frames. When B moves more than about 5%
-/// of a voxel per query, a certificate would cost more than it saves: the query then searches with the
-/// previous answer as a hint (see hint_triangle_a), as fast as a hinted query.
+/// distance is at most `level - motion`, nothing else can be closer and it is the exact answer. Otherwise
+/// the query searches again, starting from the best pair found, and refreshes the certificate: it looks a
+/// margin (the reach) past its best distance, sized from the motion since the previous query so that the
+/// certificate lasts several frames. When B moves more than about 5% of a voxel per query, a certificate
+/// would cost more than it saves: the query then searches with the previous answer as a hint (see
+/// hint_triangle_a), as fast as a hinted query, and lists nothing.
 ///
 /// In `cfl bench --moving 10000 --clock cpu` (bunny 1% apart, B moving 0.05% of the diagonal and turning
-/// 0.07 degrees per frame; three runs at 34b8c36) the certificate answered 8246 of 10000
-/// frames; the median query took 12.7 us against 32.0 us cold (2.53x; 2.63x and 2.62x in the other runs),
+/// 0.07 degrees per frame; three runs at 34b8c36) the certificate answered 8246 of 10000 frames; the
+/// median query took 12.7 us against 32.0 us cold (2.53x; 2.63x and 2.62x in the other runs),
 /// the mean 27.7 against 40.0 us (1.44x; 1.44x and 1.46x: the searches that refresh the certificate cost
 /// more than a cold query). Listing pairs rather than B's triangles (which a reused frame had to take
 /// through their voxel lists again) took the median from 2.00x / 1.89x / 2.02x. At 1000 frames (0.46% and

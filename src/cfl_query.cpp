@@ -66,13 +66,6 @@ inline Eigen::Array3d roundToInteger(const Eigen::Array3d& x) {
   return (x + kShift) - kShift;
 }
 
-// A pair of triangles (of A, of B) a certifying search lists, with its distance (or, untested, the level).
-struct NearPair {
-  double distance;
-  int a, b;
-  double group_distance;  // of the nearest pair with the same b (set when the search is over)
-};
-
 // Scratch reused across queries on one thread, so queries allocate only while it grows.
 struct Scratch {
   std::vector<std::uint32_t> stamp;  // per triangle of A: the B leaf that last tested it
@@ -102,8 +95,6 @@ struct Scratch {
   };
   std::vector<HeapEntry> heap;
   std::vector<std::pair<int, int>> node_pairs;  // computeCollision's pending node pairs
-  std::vector<NearPair> near_pairs;  // a certifying search's pairs within its margin
-  std::vector<double> group_distance;
 
   void beginQuery(std::size_t triangle_count) {
     if (stamp.size() < triangle_count) {
@@ -186,7 +177,7 @@ class Search {
     Eigen::Vector3d p, q;
     const double squared = triangleTriangleSquaredDistance(mesh_a_.corners[a].data(), tb.corners, &p, &q);
     const double distance = std::sqrt(squared);
-    if (near_pairs_ != nullptr && distance < best_ + margin_) near_pairs_->push_back({distance, a, tb.id, 0.0});
+    if (near_pairs_ != nullptr && distance < best_ + margin_) near_pairs_->push_back({a, tb.id});
     if (distance < best_ || best_a_ < 0) {
       best_ = distance;
       best_a_ = a;
@@ -229,7 +220,7 @@ class Search {
     // A certifying search lists every pair that may lie within its margin, but tests only those that may
     // beat the best distance: the others are listed on their lower bounds, untested.
     if (near_pairs_ != nullptr && !mayBeCloser(a, tb, best_)) {
-      near_pairs_->push_back({best_ + margin_, a, tb.id, 0.0});
+      near_pairs_->push_back({a, tb.id});
       return;
     }
     testPair(a, tb);
@@ -761,7 +752,7 @@ class Search {
   // up because its triangle of A is in no list within `margin` of its triangle of B. So wherever a point
   // of B moves by r <= margin, either it stays at least level - r from A, or a closest triangle of A to it is
   // listed with its triangle of B.
-  void certify(double margin, std::vector<NearPair>* near) {
+  void certify(double margin, std::vector<std::array<int, 2>>* near) {
     margin_ = margin;
     near_pairs_ = near;
   }
@@ -806,7 +797,7 @@ class Search {
   QueryCounters counters_;
   double best_ = kInfinity;
   double margin_ = 0;
-  std::vector<NearPair>* near_pairs_ = nullptr;
+  std::vector<std::array<int, 2>>* near_pairs_ = nullptr;  // (triangle of A, triangle of B)
   int best_a_ = -1, best_b_ = -1;
   Eigen::Vector3d point_a_, point_b_;
 };
@@ -961,33 +952,15 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
     search.runHierarchical();
     return answer();
   }
-  auto& near = tls_scratch.near_pairs;
-  near.clear();
+  auto& near = cache.near_pairs;
   search.certify(margin, &near);
   search.runHierarchical();
-  // Each pair once, grouped by B's triangle (placed once per group), the groups in the order of their
-  // nearest pair and the pairs of a group nearest first: the first pairs then give a bound that prunes most
-  // of the others.
-  std::sort(near.begin(), near.end(), [](const NearPair& x, const NearPair& y) {
-    return std::tie(x.b, x.a, x.distance) < std::tie(y.b, y.a, y.distance);
+  // Each pair once, grouped by B's triangle, placed once per group. The previous answer's pair, tested
+  // first, bounds the distance before any of them.
+  std::sort(near.begin(), near.end(), [](const std::array<int, 2>& x, const std::array<int, 2>& y) {
+    return std::tie(x[1], x[0]) < std::tie(y[1], y[0]);
   });
-  near.erase(std::unique(near.begin(), near.end(),
-                         [](const NearPair& x, const NearPair& y) { return x.b == y.b && x.a == y.a; }),
-             near.end());
-  auto& group_distance = tls_scratch.group_distance;
-  group_distance.clear();
-  for (std::size_t n = 0; n < near.size(); ++n) {
-    if (n == 0 || near[n].b != near[n - 1].b) group_distance.push_back(near[n].distance);
-    group_distance.back() = std::min(group_distance.back(), near[n].distance);
-  }
-  for (std::size_t n = 0, group = 0; n < near.size(); ++n) {
-    if (n > 0 && near[n].b != near[n - 1].b) ++group;
-    near[n].group_distance = group_distance[group];
-  }
-  std::sort(near.begin(), near.end(), [](const NearPair& x, const NearPair& y) {
-    return std::tie(x.group_distance, x.b, x.distance, x.a) < std::tie(y.group_distance, y.b, y.distance, y.a);
-  });
-  for (const NearPair& pair : near) cache.near_pairs.push_back({pair.a, pair.b});
+  near.erase(std::unique(near.begin(), near.end()), near.end());
   // A search that found distance 0 stops at once: its list then certifies nothing beyond 0.
   cache.certified = search.found();
   cache.level = search.best() > 0 ? search.best() + margin : 0.0;

@@ -114,8 +114,7 @@ struct DistanceCache {
   Eigen::Vector3d certified_translation = Eigen::Vector3d::Zero();   ///< p_AB at the certificate.
   double level = 0;  ///< Length; see above.
   double reach = 0;  ///< How far B may move from the certified pose before the certificate lapses (length).
-  /// The listed (triangle of A, triangle of B) pairs, grouped by B's triangle, the groups and the pairs in
-  /// a group nearest first.
+  /// The listed (triangle of A, triangle of B) pairs, each once, grouped by B's triangle.
   std::vector<std::array<int, 2>> near_pairs;
   bool has_previous = false;
   Eigen::Matrix3d previous_rotation = Eigen::Matrix3d::Identity();  ///< R_AB of the previous query.

@@ -89,13 +89,13 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
 /// hint_triangle_a), as fast as a hinted query, and lists nothing.
 ///
 /// In `cfl bench --moving 10000 --clock cpu` (bunny 1% apart, B moving 0.05% of the diagonal and turning
-/// 0.07 degrees per frame; three runs at 34b8c36) the certificate answered 8246 of 10000 frames; the
-/// median query took 12.7 us against 32.0 us cold (2.53x; 2.63x and 2.62x in the other runs),
-/// the mean 27.7 against 40.0 us (1.44x; 1.44x and 1.46x: the searches that refresh the certificate cost
-/// more than a cold query). Listing pairs rather than B's triangles (which a reused frame had to take
-/// through their voxel lists again) took the median from 2.00x / 1.89x / 2.02x. At 1000 frames (0.46% and
-/// 0.72 degrees) no certificate pays and the query is a hinted one that lists nothing: 1.19x / 1.25x /
-/// 1.26x (the hinted query without a cache 1.22x / 1.23x / 1.22x).
+/// 0.07 degrees per frame; three runs at 54a4065) the certificate answered 8246 of 10000 frames; the
+/// median query took 11.4 us against 28.2 us cold (2.47x; 2.43x and 2.43x in the other runs), the mean
+/// 21.8 against 32.6 us (1.50x; 1.50x and 1.51x: the searches that refresh the certificate cost more than
+/// a cold query). Listing pairs rather than B's triangles (which a reused frame had to take through their
+/// voxel lists again) took the median from 2.00x / 1.89x / 2.02x. At 1000 frames (0.46% and 0.72 degrees)
+/// no certificate pays and the query is a hinted one that lists nothing: 1.24x / 1.27x / 1.23x (the hinted
+/// query without a cache 1.26x / 1.25x / 1.24x).
 ///
 /// Plain data written by computeDistance: create one per pair of models and pass it to every query of
 /// that pair. Calling with other models, another mode or a non-zero rel_err / abs_err resets it (the

@@ -5,6 +5,8 @@
 #include "detail/box_triangle_bound.h"
 #include "detail/nearest_triangle.h"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -190,8 +192,8 @@ class Search {
   // Whether triangle a of A may be closer to `tb` than `threshold`, by cheap lower bounds taken cheapest
   // first, each returning as soon as it decides: the bounding spheres' gap (squared, no root), the gaps
   // between each triangle's plane and the other's corners (at short range the planes carry the bound: the
-  // spheres are bigger than the gap), and the projection on the axis between the spheres' centers (never
-  // looser than the spheres' gap, and far apart nearly exact).
+  // spheres are bigger than the gap), the projection on the axis between the spheres' centers (never
+  // looser than the spheres' gap, and far apart nearly exact), and edge-edge separating axes.
   bool mayBeCloser(int a, const PreparedTriangle& tb, double threshold) const {
     const Eigen::Vector4d& sphere = mesh_a_.spheres[a];
     const Eigen::Vector3d axis = tb.center - sphere.head<3>();
@@ -212,7 +214,54 @@ class Search {
       const double b_min = std::min({axis.dot(tb.corners[0]), axis.dot(tb.corners[1]), axis.dot(tb.corners[2])});
       if (b_min - a_max >= threshold * std::sqrt(axis_squared)) return false;
     }
-    return true;
+    return !edgeAxesSeparate(c, tb, nearestToPlane(t0, t1, t2), nearestToPlane(s0, s1, s2), threshold);
+  }
+
+  // Index of the smallest of three plane offsets in absolute value.
+  static int nearestToPlane(double x0, double x1, double x2) {
+    const double a0 = std::abs(x0), a1 = std::abs(x1), a2 = std::abs(x2);
+    return a0 <= a1 ? (a0 <= a2 ? 0 : 2) : (a1 <= a2 ? 1 : 2);
+  }
+
+  // Whether the projections of triangle c of A and `tb` on some axis e_a x e_b (edges of each) are at least
+  // `threshold` apart: a lower bound on their distance, tight where the closest features are two edges.
+  // The pairs that pass the plane tests are mostly such near-parallel patches, and 87-90% of the pairs the
+  // exact kernel then tested were no closer than the threshold; these axes rule out more than half of
+  // those. Of the nine axes, the four from the two edges at each triangle's corner nearest the other's
+  // plane catch about 3/4 of what all nine do (3991 such pairs dumped from bunny queries at 2%: 1682 of
+  // 2134), for 4/9 of the cost. On 200 poses per mesh (callgrind, whole queries): at 2% of the diagonal
+  // the bunny's exact tests fell from 45.6 to 28.5 per query and its instructions by 5.2%, the torus
+  // knot's by 3.5%, wuson's by 2.5%; at 0.5% the bunny's by 6.7%.
+  // All six corners are projected, though an edge's ends share one value in exact arithmetic: between
+  // nearly parallel edges the rounded cross product is far from orthogonal to them (a sliver test failed
+  // by 4e-9 with the shortcut), and any axis bounds the distance only if every corner is projected on it.
+  // Out of line, like testPair: only the few candidates that pass every other test get here, and inlined
+  // its registers were saved and restored on every call of mayBeCloser (wuson: 1.8% more instructions).
+#if defined(__GNUC__)
+  __attribute__((noinline))
+#endif
+  static bool edgeAxesSeparate(const std::array<Eigen::Vector3d, 3>& c, const PreparedTriangle& tb, int corner_a,
+                               int corner_b, double threshold) {
+    static constexpr int kNext[3] = {1, 2, 0}, kPrevious[3] = {2, 0, 1};
+    // Everything relative to A's corner: its edges, B's corner, and B's edges out of that corner.
+    const Eigen::Vector3d& origin = c[corner_a];
+    const Eigen::Vector3d edges_a[2] = {c[kNext[corner_a]] - origin, c[kPrevious[corner_a]] - origin};
+    const Eigen::Vector3d& corner = tb.corners[corner_b];
+    const Eigen::Vector3d edges_b[2] = {tb.corners[kNext[corner_b]] - corner, tb.corners[kPrevious[corner_b]] - corner};
+    const Eigen::Vector3d offset = corner - origin;
+    const double threshold_squared = threshold * threshold;
+    for (const Eigen::Vector3d& edge_b : edges_b) {
+      for (const Eigen::Vector3d& edge_a : edges_a) {
+        const Eigen::Vector3d axis = edge_a.cross(edge_b);
+        const double a1 = edges_a[0].dot(axis), a2 = edges_a[1].dot(axis);  // A's corner projects at 0
+        const double b0 = offset.dot(axis), b1 = b0 + edges_b[0].dot(axis), b2 = b0 + edges_b[1].dot(axis);
+        const double low_a = std::min(0.0, std::min(a1, a2)), high_a = std::max(0.0, std::max(a1, a2));
+        const double low_b = std::min(b0, std::min(b1, b2)), high_b = std::max(b0, std::max(b1, b2));
+        const double gap = std::max(low_b - high_a, low_a - high_b);
+        if (gap > 0 && gap * gap >= threshold_squared * axis.squaredNorm()) return true;
+      }
+    }
+    return false;
   }
 
   void testPairIfClose(int a, const PreparedTriangle& tb) {

@@ -575,6 +575,59 @@ TEST(ComputeDistance, SliverPlanesNeverPruneTheClosestPair) {
   EXPECT_EQ(failures, 0);
 }
 
+// The pair filter's edge-edge axes are cross products of two edges; between nearly parallel edges the
+// rounded product is far from orthogonal to them, so a bound that skipped projecting any corner would prune
+// pairs that are closer than the threshold (a version that took an edge's ends as projecting at one value
+// failed here, its first three failing trials off by 2e-6 to 6e-6). The closest features are two edges 1e-2
+// to 1e-12 rad from parallel, far from the origin, with a decoy 0.1% to 1.1% farther given as the hint.
+TEST(ComputeDistance, EdgeAxesNeverPruneTheClosestPair) {
+  test::Rng rng(73);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int failures = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const Eigen::Matrix3d R = test::randomRotation(rng);
+    const Eigen::Vector3d offset =
+        200 * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)) - Eigen::Vector3d::Constant(100);
+    const double angle = std::pow(10.0, -2 - 10 * unit(rng));
+    const double gap = 1e-3 * (0.5 + unit(rng));
+    auto place = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d { return R * x + offset; };
+    // A's edge along x at z = 0, its triangle below; B's edge at z = gap turned by `angle` about z, its
+    // triangle above: the closest points are on the two edges.
+    const Eigen::Vector3d along(std::cos(angle), std::sin(angle), 0);
+    const Eigen::Vector3d start(0.25 * unit(rng), 0, gap);
+    // The decoy's tip lies under B's edge, 0.1% to 1.1% farther from it than A's edge.
+    const Eigen::Vector3d decoy = start + 0.95 * along - Eigen::Vector3d(0, 0, gap * (1.001 + 0.01 * unit(rng)));
+    TriangleMesh mesh_a;
+    mesh_a.vertices = {place({0, 0, 0}), place({1, 0, 0}), place({0.5, 0.3 * unit(rng), -0.5}),
+                       place(decoy), place(decoy + Eigen::Vector3d(0.01, 0, -0.01)),
+                       place(decoy + Eigen::Vector3d(0, 0.01, -0.01))};
+    mesh_a.triangles = {{0, 1, 2}, {3, 4, 5}};
+    TriangleMesh mesh_b;
+    mesh_b.vertices = {place(start), place(start + along), place(start + Eigen::Vector3d(0.5, 0.3 * unit(rng), 0.5))};
+    mesh_b.triangles = {{0, 1, 2}};
+    BuildOptions build;
+    build.resolution = 16;
+    const CflModel a = buildCflModel(mesh_a, build);
+    const MeshModel b = makeMeshModel(mesh_b);
+    const Eigen::Isometry3d identity = Eigen::Isometry3d::Identity();
+    const DistanceResult truth = bruteForceDistance(a.geometry, identity, b, identity);
+    ASSERT_EQ(truth.triangle_a, 0) << "the crossing edges must be the closest pair, trial " << trial;
+    for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+      DistanceOptions options;
+      options.mode = mode;
+      options.hint_triangle_a = 1;
+      options.hint_triangle_b = 0;
+      const DistanceResult result = computeDistance(a, identity, b, identity, options);
+      if (std::abs(result.distance - truth.distance) > 1e-9 * a.geometry.bounds.diagonal() && ++failures <= 5) {
+        ADD_FAILURE() << "trial " << trial << " (angle " << angle << ", mode " << int(mode)
+                      << "): distance " << result.distance << " on triangle " << result.triangle_a
+                      << ", brute force " << truth.distance;
+      }
+    }
+  }
+  EXPECT_EQ(failures, 0);
+}
+
 TEST(ComputeDistance, ConcurrentQueriesOnSharedModelsGiveTheSequentialAnswers) {
   const Shape& a = shape("knot");
   const Shape& b = shape("messy");

@@ -210,7 +210,15 @@ int automaticResolution(const TriangleMesh& mesh, double padding) {
   const double mean_edge = edge_sum / (3.0 * mesh.triangles.size());
   const double longest = boundingBox(mesh).size().maxCoeff() * std::max(1.0, padding);
   if (!(mean_edge > 0)) return 8;
-  const double resolution = longest / (2.0 * mean_edge);
+  // Voxels of 1.25 mean edges: short-range queries scan the lists of the voxels a triangle of B touches, and
+  // finer voxels hold fewer triangles within the prune threshold. Against 2 mean edges (the rule until
+  // this commit), instructions per query on 200 poses fell 15% to 20% on the bunny (resolution 39 -> 62)
+  // from 0.5% to 50% of the diagonal, about 10% on wuson and 15% on the torus knot (-> 96, the cap);
+  // beyond the grid nothing changes (callgrind, same poses). The cost, one run each: the bunny built in
+  // 2.07 s instead of 0.78 s and takes 16.3 MB instead of 9.0 MB; wuson 1.17 s and 14.0 MB, the knot 4.14 s
+  // and 30.4 MB. Finer voxels pay less and less (bunny 52 -> 64: 5% fewer instructions).
+  constexpr double kVoxelMeanEdges = 1.25;
+  const double resolution = longest / (kVoxelMeanEdges * mean_edge);
   const double finest = std::clamp(std::round(32 * padding), 64.0, 96.0);
   return static_cast<int>(std::clamp(std::round(resolution), 8.0, finest));
 }

@@ -223,20 +223,20 @@ class Search {
     return a0 <= a1 ? (a0 <= a2 ? 0 : 2) : (a1 <= a2 ? 1 : 2);
   }
 
-  // Whether the projections of triangle c of A and `tb` on some axis e_a x e_b (edges of each) are at least
-  // `threshold` apart: a lower bound on their distance, tight where the closest features are two edges.
-  // The pairs that pass the plane tests are mostly such near-parallel patches, and 87-90% of the pairs the
-  // exact kernel then tested were no closer than the threshold; these axes rule out more than half of
-  // those. Of the nine axes, the four from the two edges at each triangle's corner nearest the other's
-  // plane catch about 3/4 of what all nine do (3991 such pairs dumped from bunny queries at 2%: 1682 of
-  // 2134), for 4/9 of the cost. On 200 poses per mesh (callgrind, whole queries): at 2% of the diagonal
-  // the bunny's exact tests fell from 45.6 to 28.5 per query and its instructions by 5.2%, the torus
-  // knot's by 3.5%, wuson's by 2.5%; at 0.5% the bunny's by 6.7%.
+  // Whether the projections of triangle c of A and `tb` on one of four axes e_a x e_b (edges of each) are at
+  // least `threshold` apart: a lower bound on their distance, tight where the closest features are two
+  // edges. The pairs that pass the plane tests are mostly such near-parallel patches, and 87-90% of the
+  // pairs the exact kernel then tested were no closer than the threshold. Of 3991 such pairs dumped from
+  // bunny queries at 2%, all nine edge-edge axes rule out 2134; the four from the two edges at each
+  // triangle's corner nearest the other's plane, taken here, 1682 for 4/9 of the cost; the one axis of the
+  // two edges nearest each other's plane, 572. On 200 poses per mesh (callgrind, whole queries): at 2% of
+  // the diagonal the bunny's exact tests fell from 45.6 to 28.5 per query and its instructions by 5.2%, the
+  // torus knot's by 3.5%, wuson's by 2.5%; at 0.5% the bunny's by 6.7%.
   // All six corners are projected, though an edge's ends share one value in exact arithmetic: between
   // nearly parallel edges the rounded cross product is far from orthogonal to them (a sliver test failed
-  // by 4e-9 with the shortcut), and any axis bounds the distance only if every corner is projected on it.
+  // by 5.4e-9 with the shortcut), and any axis bounds the distance only if every corner is projected on it.
   // Out of line, like testPair: only the few candidates that pass every other test get here, and inlined
-  // its registers were saved and restored on every call of mayBeCloser (wuson: 1.8% more instructions).
+  // its registers were saved and restored on every call of mayBeCloser (wuson: 0.8% more instructions).
 #if defined(__GNUC__)
   __attribute__((noinline))
 #endif

@@ -11,23 +11,26 @@ namespace cfl {
 
 /// One node of a Bvh. Inner nodes have count == 0 and children at `first` and `first + 1`; leaves have
 /// count > 0 and own Bvh::triangle_ids[first, first + count).
-struct BvhNode {
-  Aabb box;                 ///< Bounds of every triangle below, mesh frame.
+struct alignas(64) BvhNode {
+  // Fields in the order a distance query reads them, one cache line per group: the sphere and the links
+  // for every node it reaches, the oriented box for the nodes it bounds closely, the axis-aligned box for
+  // the Bvh-against-Bvh paths.
   Eigen::Vector3d center;   ///< Center of a sphere bounding every triangle below (not the box's circumsphere).
   double radius = 0;        ///< Radius of that sphere.
-  /// An oriented box bounding every triangle below: its points p satisfy |obb_axes.col(i) . (p - obb_center)|
-  /// <= obb_half[i]. The axes are the principal axes of the node's vertices (orthonormal, least spread
-  /// first), so the box is thin across a nearly flat patch; distance queries bound node pairs with it where
-  /// axis-aligned boxes and spheres are loose.
-  Eigen::Matrix3d obb_axes = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d obb_center = Eigen::Vector3d::Zero();
-  Eigen::Vector3d obb_half = Eigen::Vector3d::Zero();
   std::int32_t first = 0;
   std::int32_t count = 0;
   /// Every triangle below the node, leaf or not: Bvh::triangle_ids[subtree_first, subtree_first +
   /// subtree_count). Lets a query test two small subtrees pair by pair instead of splitting them further.
   std::int32_t subtree_first = 0;
   std::int32_t subtree_count = 0;
+  /// An oriented box bounding every triangle below: its points p satisfy |obb_axes.col(i) . (p - obb_center)|
+  /// <= obb_half[i]. The axes are the principal axes of the node's vertices (orthonormal, least spread
+  /// first), so the box is thin across a nearly flat patch; distance queries bound node pairs with it where
+  /// axis-aligned boxes and spheres are loose.
+  alignas(64) Eigen::Matrix3d obb_axes = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d obb_center = Eigen::Vector3d::Zero();
+  Eigen::Vector3d obb_half = Eigen::Vector3d::Zero();
+  alignas(64) Aabb box;     ///< Bounds of every triangle below, mesh frame.
 
   bool isLeaf() const { return count > 0; }
 };

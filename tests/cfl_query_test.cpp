@@ -569,14 +569,12 @@ TEST(ComputeDistance, SliverPlanesNeverPruneTheClosestPair) {
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   Failures failures;
   for (int trial = 0; trial < 400; ++trial) {
-    const Eigen::Matrix3d R = test::randomRotation(rng);
-    const Eigen::Vector3d offset =
-        20 * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)) - Eigen::Vector3d::Constant(10);
+    const Eigen::Isometry3d X = test::randomPose(rng, 10);
     const double height = std::pow(10.0, -6 - 6 * unit(rng));
     const double gap = 1e-3 * (0.5 + unit(rng));
     const Eigen::Vector3d probe(0.2 + 0.6 * unit(rng), 0.3 * height, gap);
     const Eigen::Vector3d decoy = probe + Eigen::Vector3d(0, gap * (1 + 1e-5 * unit(rng)), 0);
-    auto place = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d { return R * x + offset; };
+    auto place = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d { return X * x; };
     TriangleMesh mesh_a;
     mesh_a.vertices = {place({0, 0, 0}), place({1, 0, 0}), place({0.35 + 0.3 * unit(rng), height, 0}),
                        place(decoy), place(decoy + Eigen::Vector3d(0, 0.01, 0.001)),
@@ -602,12 +600,10 @@ TEST(ComputeDistance, EdgeAxesNeverPruneTheClosestPair) {
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   Failures failures;
   for (int trial = 0; trial < 300; ++trial) {
-    const Eigen::Matrix3d R = test::randomRotation(rng);
-    const Eigen::Vector3d offset =
-        200 * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)) - Eigen::Vector3d::Constant(100);
+    const Eigen::Isometry3d X = test::randomPose(rng, 100);
     const double angle = std::pow(10.0, -2 - 10 * unit(rng));
     const double gap = 1e-3 * (0.5 + unit(rng));
-    auto place = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d { return R * x + offset; };
+    auto place = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d { return X * x; };
     // A's edge along x at z = 0, its triangle below; B's edge at z = gap turned by `angle` about z, its
     // triangle above: the closest points are on the two edges.
     const Eigen::Vector3d along(std::cos(angle), std::sin(angle), 0);

@@ -68,6 +68,16 @@ inline Eigen::Array3d roundToInteger(const Eigen::Array3d& x) {
   return (x + kShift) - kShift;
 }
 
+// HeapEntry::node_a values that name no node of A.
+constexpr int kAgainstGrid = -1;
+constexpr int kTriangleOfB = -2;
+
+// The search order's key for a step whose lower bound is `lower_bound` and whose piece of B has bounding
+// radius `radius` (see HeapEntry::key).
+inline double searchKey(double lower_bound, double radius) {
+  return lower_bound > 0 ? lower_bound : -1 / (1 + radius + std::max(0.0, lower_bound + radius));
+}
+
 // Scratch reused across queries on one thread, so queries allocate only while it grows.
 struct Scratch {
   std::vector<std::uint32_t> stamp;  // per triangle of A: the B leaf that last tested it
@@ -90,8 +100,8 @@ struct Scratch {
     // Pruning on the key stays valid: a key <= 0 is never pruned by a positive threshold, and a threshold
     // of 0 ends the query anyway.
     double key;
-    int node_b;
-    int node_a;  // -1: B's node against A's grid; otherwise a node pair of the two Bvhs
+    int node_b;  // a node of B's Bvh, or with node_a == kTriangleOfB a triangle of B
+    int node_a;  // kAgainstGrid: B's node against A's grid; otherwise a node pair of the two Bvhs
     // std::push_heap keeps the greatest on top; the nearest entry must be the greatest.
     bool operator<(const HeapEntry& other) const { return key > other.key; }
   };
@@ -580,9 +590,7 @@ class Search {
     int offered_count = 0;
     auto offer = [&](double lower_bound, int node_b, int node_a) {
       if (lower_bound >= pruneThreshold()) return;
-      const double radius = nodes_b[node_b].radius;
-      const double key = lower_bound > 0 ? lower_bound : -1 / (1 + radius + std::max(0.0, lower_bound + radius));
-      offered[offered_count++] = {key, node_b, node_a};
+      offered[offered_count++] = {searchKey(lower_bound, nodes_b[node_b].radius), node_b, node_a};
     };
     auto offerAgainstGrid = [&](int n) {
       ++counters_.voxel_tests;
@@ -597,9 +605,9 @@ class Search {
         // bunnies: 1.59x with this limit, 1.41x without).
         const PlacedNode placed = place(n, center);
         const double far = farCornerLowerBound(placed.obb_center, placed.obb_axes, placed.node->obb_half);
-        offer(std::max(lower_bound, far), n, -1);
+        offer(std::max(lower_bound, far), n, kAgainstGrid);
       } else {
-        offer(lower_bound, n, -1);
+        offer(lower_bound, n, kAgainstGrid);
       }
     };
     auto push = [&](const Scratch::HeapEntry& entry) {
@@ -621,7 +629,7 @@ class Search {
       // `entry` is the nearest pending one. Distance 0 cannot be beaten.
       if (entry.key >= pruneThreshold() || best_ <= 0) break;
       offered_count = 0;
-      expand(entry, offer, offerAgainstGrid);
+      expand(entry, offer, offerAgainstGrid, push);
       if (offered_count == 2 && offered[1].key < offered[0].key) std::swap(offered[0], offered[1]);
       if (offered_count == 2) push(offered[1]);
       if (offered_count >= 1) {
@@ -644,15 +652,23 @@ class Search {
            ((center + reach).array() <= grid_box_.max.array()).all();
   }
 
-  // One step of runHierarchical: tests a leaf's triangles, or offers the children of a node (the larger
-  // node of a pair, by sphere radius; a leaf is never split).
-  template <class Offer, class OfferAgainstGrid>
-  void expand(const Scratch::HeapEntry& entry, Offer& offer, OfferAgainstGrid& offerAgainstGrid) {
+  // One step of runHierarchical: tests a triangle or a leaf's triangles, or offers the children of a node
+  // (the larger node of a pair, by sphere radius; a leaf is never split).
+  template <class Offer, class OfferAgainstGrid, class Push>
+  void expand(const Scratch::HeapEntry& entry, Offer& offer, OfferAgainstGrid& offerAgainstGrid, Push& push) {
+    if (entry.node_a == kTriangleOfB) {
+      testTriangle(entry.node_b);
+      return;
+    }
     const BvhNode& node_b = b_.bvh.nodes[entry.node_b];
-    if (entry.node_a < 0) {
+    if (entry.node_a == kAgainstGrid) {
       if (node_b.subtree_count <= kSmallSubtreeTriangles && insideGrid(node_b)) {
-        // Queued on its nearest corner's bound; each triangle's cell may already rule it out. Nearest
-        // first, without the heap traffic of the last levels.
+        // Queued on its nearest corner's bound; each triangle's cell may already rule it out. Its triangles
+        // are tested nearest first, without the heap traffic of the last levels, while none pending is
+        // nearer; the rest go back to the heap on their own bounds. Testing them all at once would scan
+        // triangles far from the answer before any pair is known, when every list entry passes the
+        // filters: on wuson at 2% of the diagonal the exact pair tests fell from 39.4 to 29.4 per query
+        // and the instructions by 7.4% (bunny 1.5% to 3.6%, torus knot 2.3%).
         std::pair<double, int> order[kSmallSubtreeTriangles];
         int count = 0;
         for (int n = node_b.subtree_first; n < node_b.subtree_first + node_b.subtree_count; ++n) {
@@ -660,7 +676,18 @@ class Search {
           order[count++] = {triangleLowerBound(t), t};
         }
         std::sort(order, order + count);
-        for (int n = 0; n < count && order[n].first < pruneThreshold() && best_ > 0; ++n) testTriangle(order[n].second);
+        const auto& heap = scratch_.heap;
+        bool deferred = false;
+        for (int n = 0; n < count && order[n].first < pruneThreshold() && best_ > 0; ++n) {
+          const auto [lower_bound, t] = order[n];
+          const double key = searchKey(lower_bound, b_.spheres[t][3]);
+          deferred = deferred || (!heap.empty() && key > heap.front().key);
+          if (deferred) {
+            push(Scratch::HeapEntry{key, t, kTriangleOfB});
+          } else {
+            testTriangle(t);
+          }
+        }
       } else if (node_b.isLeaf()) {  // a Bvh built with larger leaves
         for (int n = node_b.first; n < node_b.first + node_b.count; ++n) testTriangle(b_.bvh.triangle_ids[n]);
       } else {

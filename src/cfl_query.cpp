@@ -213,12 +213,15 @@ class Search {
     const auto& c = mesh_a_.corners[a];
     const Eigen::Vector4d& plane = mesh_a_.planes[a];
     const Eigen::Vector3d normal_a = plane.head<3>();
-    const double s0 = normal_a.dot(tb.corners[0]) - plane[3], s1 = normal_a.dot(tb.corners[1]) - plane[3],
-                 s2 = normal_a.dot(tb.corners[2]) - plane[3];
-    if (std::max(std::min({s0, s1, s2}), -std::max({s0, s1, s2})) >= threshold) return false;
+    // B's plane first, the more selective of the two: in the other order, on wuson at 2% of the diagonal, A's
+    // plane ruled out 107 candidates per query and B's 205 of those left. Swapped, 1.0% to 1.3% fewer
+    // instructions at 2% on the bunny, the torus knot and wuson.
     const double t0 = tb.normal.dot(c[0]) - tb.offset, t1 = tb.normal.dot(c[1]) - tb.offset,
                  t2 = tb.normal.dot(c[2]) - tb.offset;
     if (std::max(std::min({t0, t1, t2}), -std::max({t0, t1, t2})) >= threshold) return false;
+    const double s0 = normal_a.dot(tb.corners[0]) - plane[3], s1 = normal_a.dot(tb.corners[1]) - plane[3],
+                 s2 = normal_a.dot(tb.corners[2]) - plane[3];
+    if (std::max(std::min({s0, s1, s2}), -std::max({s0, s1, s2})) >= threshold) return false;
     if (axis_squared > 0) {
       const double a_max = std::max({axis.dot(c[0]), axis.dot(c[1]), axis.dot(c[2])});
       const double b_min = std::min({axis.dot(tb.corners[0]), axis.dot(tb.corners[1]), axis.dot(tb.corners[2])});

@@ -7,6 +7,10 @@
 
 #include <Eigen/Geometry>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -76,6 +80,31 @@ constexpr int kTriangleOfB = -2;
 // radius `radius` (see HeapEntry::key).
 inline double searchKey(double lower_bound, double radius) {
   return lower_bound > 0 ? lower_bound : -1 / (1 + radius + std::max(0.0, lower_bound + radius));
+}
+
+// How many of a list's entry bounds, sorted increasing, lie below `limit` (1 to 256): the entries a scan
+// takes. Sixteen bytes at a time where the bounds array (ending at `array_end`) has them; a byte at a time,
+// this loop's two branches per entry cost 2.8% of a query's instructions on wuson at 2% of the diagonal, and
+// the vector form took 1.2% to 2.1% off the whole query on the bunny, the torus knot and wuson.
+inline std::ptrdiff_t passingPrefix(const std::uint8_t* bounds, std::ptrdiff_t length, int limit,
+                                    const std::uint8_t* array_end) {
+  if (limit > 255) return length;
+  std::ptrdiff_t n = 0;
+#if defined(__SSE2__)
+  const __m128i limits = _mm_set1_epi8(static_cast<char>(limit));
+  while (n < length && array_end - (bounds + n) >= 16) {
+    const __m128i block = _mm_loadu_si128(reinterpret_cast<const __m128i*>(bounds + n));
+    // Bytes at or above the limit: those the unsigned max leaves unchanged.
+    const int reached = _mm_movemask_epi8(_mm_cmpeq_epi8(_mm_max_epu8(block, limits), block));
+    if (reached != 0) return std::min(length, n + __builtin_ctz(static_cast<unsigned>(reached)));
+    n += 16;
+  }
+  if (n >= length) return length;
+#else
+  (void)array_end;
+#endif
+  while (n < length && bounds[n] < limit) ++n;
+  return n;
 }
 
 // Scratch reused across queries on one thread, so queries allocate only while it grows.
@@ -455,6 +484,7 @@ class Search {
     // monotone). Bytes compared as integers, not converted entry by entry.
     const double units = threshold / a_.entryBoundUnit();
     const int code_limit = units < 255 ? int(units) + 1 : 256;
+    const std::uint8_t* bounds_end = a_.list_entry_bounds.data() + a_.list_entry_bounds.size();
     for (int k = first[2]; k <= last[2]; ++k) {
       for (int j = first[1]; j <= last[1]; ++j) {
         for (int i = first[0]; i <= last[0]; ++i) {
@@ -467,8 +497,7 @@ class Search {
           const std::int32_t* ids = a_.listBegin(v);
           const std::uint8_t* bounds = a_.listBoundsBegin(v);
           const std::ptrdiff_t length = a_.listEnd(v) - ids;
-          std::ptrdiff_t end = 0;
-          while (end < length && bounds[end] < code_limit) ++end;
+          const std::ptrdiff_t end = passingPrefix(bounds, length, code_limit, bounds_end);
           if (candidates.size() < count + std::size_t(end)) candidates.resize(2 * (count + end));
           std::uint32_t* stamp = scratch_.stamp.data();
           int* out = candidates.data();

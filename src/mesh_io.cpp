@@ -164,6 +164,10 @@ struct SceneFlattener {
 
   void visit(const aiNode& node, const aiMatrix4x4& X_WParent) {
     const aiMatrix4x4 X_WN = X_WParent * node.mTransformation;
+    if (node.mMeshes == nullptr && node.mNumMeshes > 0) {
+      fail(path, "node '" + std::string(node.mName.C_Str()) + "' lists " + std::to_string(node.mNumMeshes) +
+                     " meshes but holds none (assimp built an incomplete scene from this file)");
+    }
     for (unsigned i = 0; i < node.mNumMeshes; ++i) {
       const unsigned mesh_index = node.mMeshes[i];
       if (mesh_index >= scene.mNumMeshes) {
@@ -172,7 +176,16 @@ struct SceneFlattener {
       }
       addMesh(mesh_index, X_WN);
     }
-    for (unsigned i = 0; i < node.mNumChildren; ++i) visit(*node.mChildren[i], X_WN);
+    for (unsigned i = 0; i < node.mNumChildren; ++i) {
+      // assimp 5.2's RAW reader leaves a null child for every object after the first: refused, since
+      // skipping it would drop part of the mesh without a word.
+      if (node.mChildren == nullptr || node.mChildren[i] == nullptr) {
+        fail(path, "node '" + std::string(node.mName.C_Str()) + "' lists " + std::to_string(node.mNumChildren) +
+                       " children but child " + std::to_string(i) +
+                       " is missing (assimp built an incomplete scene from this file)");
+      }
+      visit(*node.mChildren[i], X_WN);
+    }
   }
 };
 

@@ -314,6 +314,22 @@ TEST_F(MeshIoTest, TruncatedPlyIsRefusedByName) {
   expectErrorNaming(path("truncated.ply"), "");
 }
 
+TEST_F(MeshIoTest, IncompleteSceneGraphIsRefusedByName) {
+  // Two named objects in assimp's RAW format (a color, then a triangle's corners, per line): assimp 5.2
+  // links only one of them into the scene graph and leaves a null child where the other should be.
+  writeText(path("two_objects.raw"),
+            "first\n0.2 0.2 0.2 0 0 0 0 1 0 1 0 0\n\nsecond\n0.2 0.2 0.2 0 0 3 0 1 3 1 0 3\n");
+  try {
+    const TriangleMesh mesh = loadMesh(path("two_objects.raw"));
+    // An assimp that links both objects gives both triangles.
+    EXPECT_EQ(mesh.triangles.size(), 2u);
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    EXPECT_EQ(message.rfind(path("two_objects.raw"), 0), 0u) << message;
+    EXPECT_NE(message.find("is missing"), std::string::npos) << message;
+  }
+}
+
 TEST_F(MeshIoTest, OutOfRangeFaceIndexIsRefusedByName) {
   // (Not OFF: assimp's OFF reader clamps such an index to the last vertex, and says so only in its log.)
   writeText(path("bad_index.ply"),

@@ -30,7 +30,9 @@ namespace cfl {
 /// Throws cfl::Error whose message starts with the path and gives the reason: the file is missing or
 /// unreadable, empty, not a format assimp can parse (with assimp's own message), holds no triangle, or has
 /// a non-finite coordinate, or a face index out of range (except in OFF files, whose assimp reader clamps
-/// such an index to the last vertex and only logs it). The result always passes validateMesh.
+/// such an index to the last vertex and only logs it), an OFF header whose vertex and face counts the file
+/// is too small to hold, or a scene graph assimp left incomplete (a null child node, as its RAW reader does
+/// for every object after the first). The result always passes validateMesh.
 /// Thread safety: each call uses its own importer, so concurrent calls are safe. Time: linear in file size.
 TriangleMesh loadMesh(const std::string& path);
 

@@ -330,6 +330,18 @@ TEST_F(MeshIoTest, IncompleteSceneGraphIsRefusedByName) {
   }
 }
 
+TEST_F(MeshIoTest, OffCountsTheFileCannotHoldAreRefusedByName) {
+  // A damaged vertex count that assimp would allocate for (gigabytes, minutes) before failing.
+  writeText(path("huge.off"), "OFF\n3535352353586 0\n0 0 0\n1 0 0\n0 1 0\n");
+  expectErrorNaming(path("huge.off"), "declares 3535352353586 vertices");
+  // A face count larger than the file holds, which assimp would read as the faces present without a word.
+  writeText(path("truncated.off"), "# a comment\nOFF\n3 1000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  expectErrorNaming(path("truncated.off"), "1000 faces");
+  // Counts the file can hold still load.
+  writeText(path("one.off"), "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  EXPECT_EQ(loadMesh(path("one.off")).triangles.size(), 1u);
+}
+
 TEST_F(MeshIoTest, OutOfRangeFaceIndexIsRefusedByName) {
   // (Not OFF: assimp's OFF reader clamps such an index to the last vertex, and says so only in its log.)
   writeText(path("bad_index.ply"),

@@ -110,7 +110,7 @@ void triangulatePolygon(const std::vector<Eigen::Vector3d>& vertices, const std:
 }
 
 // An OFF file's header declares its vertex and face counts, and assimp 5.2 allocates for them before reading
-// a single vertex: a damaged header of 3.5e12 vertices took 86 s and 21 GB before failing, and a face count
+// a single vertex: a damaged header of 3.5e11 vertices took 86 s and 21 GB before failing, and a face count
 // larger than the file holds loads the faces present without a word. Counts that the file's size cannot hold
 // (a vertex takes at least 6 bytes, "0 0 0\n", and a face 8, "3 0 1 2\n") are refused here. Files that do
 // not start with a plain OFF header are left to assimp.

@@ -429,7 +429,9 @@ class Search {
                                    (d001 + d101 + d011 + d111) - (d000 + d100 + d010 + d110));
     const double norm = gradient.norm();
     double bound = -kInfinity;
-    if (!(norm > 0)) return bound;
+    // A flat field gives no direction; one whose sums overflow (distances near the double range, which only
+    // a damaged model file holds) none usable: a NaN direction would reach the corner index's conversion.
+    if (!(norm > 0) || !std::isfinite(norm)) return bound;
     const Eigen::Vector3d direction = gradient / norm;
     // Farther corners lose less across flat gaps, nearer ones less where A curves away; {1, 2, 3.5, 5}
     // voxels measured as well as {2, 4, 8}, {1.5, 3} and {1, 2, 3.5, 5, 8}, within the noise.

@@ -488,11 +488,25 @@ class Search {
     const double units = threshold / a_.entryBoundUnit();
     const int code_limit = units < 255 ? int(units) + 1 : 256;
     const std::uint8_t* bounds_end = a_.list_entry_bounds.data() + a_.list_entry_bounds.size();
+    // Voxels of the box that tb's plane misses by more than the margin hold no point within the margin of
+    // tb: on wuson at 2% of the diagonal, 15% of the box's voxels (instructions -2.5%; bunny -0.9%, torus
+    // knot -0.5%). A voxel reaches h/2 |n|_1 either side of its center along the unit normal n. The slack,
+    // 1e-9 of the coordinates' size, dwarfs the rounding of these sums and tb's corners' offsets from its
+    // plane (a few eps, see makeMeshModel), so no voxel holding a point of tb is skipped. A degenerate
+    // triangle's zero normal skips none.
+    const double h = grid.voxel_size;
+    const Eigen::Vector3d first_center = grid.voxelCenter(first[0], first[1], first[2]);
+    const double size = std::abs(tb.offset) + first_center.cwiseAbs().sum() + (hi - lo).sum() + 3 * h;
+    const double slab = 0.5 * h * tb.normal.lpNorm<1>() + margin_ + 1e-9 * size;
+    const Eigen::Vector3d plane_step = h * tb.normal;  // from a voxel to the next along each axis
+    const double plane_first = tb.normal.dot(first_center) - tb.offset;
     for (int k = first[2]; k <= last[2]; ++k) {
       for (int j = first[1]; j <= last[1]; ++j) {
+        const double plane_row = plane_first + (k - first[2]) * plane_step[2] + (j - first[1]) * plane_step[1];
         for (int i = first[0]; i <= last[0]; ++i) {
           const std::int64_t v = grid.voxelIndex(i, j, k);
           ++counters_.voxel_tests;
+          if (std::abs(plane_row + (i - first[0]) * plane_step[0]) > slab) continue;
           if (a_.voxel_lower_bound[v] >= threshold) continue;
           // The part of tb inside this voxel is at least an entry's bound from its triangle, and any other
           // part of tb lies in a voxel of its own: once the bounds reach the threshold, the rest of this

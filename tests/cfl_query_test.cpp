@@ -854,6 +854,27 @@ std::int64_t checkCachedFrames(const Shape& a, const Shape& b, const std::vector
   return cache.reused - reused_before;
 }
 
+// B's triangles span several of A's voxels on each axis: most voxels of a triangle's box miss its plane and
+// are skipped, and the query must still match brute force at every range, searched plainly or through a
+// certifying cache (whose margin widens what is kept).
+TEST(ComputeDistance, TrianglesOfBSpanningManyVoxelsMatchBruteForce) {
+  const auto a = makeShape("fine_torus", test::makeTorus(1.0, 0.35, 10, 5), 64);
+  const auto b = makeShape("coarse_hemisphere", test::makeHemisphere(1.0, 3, 8), 4);
+  test::Rng rng(107);
+  Failures failures;
+  for (double fraction : {0.0, 0.002, 0.01, 0.03, 0.1}) {
+    for (int n = 0; n < 12; ++n) {
+      const Pose pose = makePose(*a, *b, fraction, rng);
+      const DistanceResult truth = bruteForceDistance(a->model, pose.X_WA, b->model, pose.X_WB);
+      checkResult(computeDistance(a->cfl, pose.X_WA, b->model, pose.X_WB), truth, *a, *b, pose, "plain", failures);
+    }
+    DistanceCache cache;
+    const std::vector<Pose> motion = smoothMotion(*a, *b, makePose(*a, *b, fraction, rng), 20, 1e-3, 1e-3, false, rng);
+    checkCachedFrames(*a, *b, motion, cache, "cached", failures);
+  }
+  EXPECT_EQ(failures.count(), 0);
+}
+
 TEST(DistanceCache, SlowMotionMatchesBruteForceAndIsMostlyAnsweredByTheCertificate) {
   test::Rng rng(101);
   Failures failures;

@@ -963,5 +963,60 @@ TEST(DistanceCache, OneCacheGivenOtherModelsOrApproximateOptionsStaysCorrect) {
   EXPECT_EQ(failures.count(), 0);
 }
 
+// A certificate must list the pairs B can form anywhere within its margin, including in voxels beyond the
+// ones B's triangles touch. Here B is one small horizontal triangle just below a layer of A's voxels (0.01
+// voxel), between a sheet of A below (its answer) and a sheet above whose bisector with the lower one lies
+// 0.05 voxel inside the next layer. No point of B's own voxels is closest to the upper sheet, so only the
+// layer above lists it. B then rises by 0.07 voxel, within the certificate's reach, and the upper sheet becomes
+// the closest: a certifying search that skipped the layer above (one that looked only at the voxels B's plane
+// crosses) would answer from a certificate without that pair, 0.003 too far.
+TEST(DistanceCache, CertificateListsThePairsOfVoxelsOnlyTheMarginReaches) {
+  const double h = 0.15;                    // voxel edge: lateral extent 2, padding 1.5, resolution 20
+  const double layer = 3 * h;               // the top of B's voxel layer
+  const double below = 0.01 * h, bisector = layer + 0.05 * h;
+  const double upper = 2 * bisector;        // the lower sheet is at z = 0
+  auto sheet = [](TriangleMesh& mesh, double z) {
+    const int first = static_cast<int>(mesh.vertices.size());
+    for (double x : {-1.0, 1.0}) {
+      for (double y : {-1.0, 1.0}) mesh.vertices.emplace_back(x, y, z);
+    }
+    mesh.triangles.push_back({first, first + 1, first + 3});
+    mesh.triangles.push_back({first, first + 3, first + 2});
+  };
+  TriangleMesh mesh_a;
+  sheet(mesh_a, 0.0);
+  sheet(mesh_a, upper);
+  // A speck in a corner, up at z = 1.2, sets the grid's vertical extent so that a layer of voxels ends at
+  // `layer` (12 layers from -0.3).
+  mesh_a.vertices.insert(mesh_a.vertices.end(), {{0.9, 0.9, 1.2}, {1.0, 0.9, 1.2}, {0.9, 1.0, 1.2}});
+  mesh_a.triangles.push_back({8, 9, 10});
+  BuildOptions options;
+  options.resolution = 20;
+  options.padding = 1.5;
+  const MeshModel model_a = makeMeshModel(mesh_a);
+  const CflModel cfl_a = buildCflModel(mesh_a, options);
+  ASSERT_NEAR(cfl_a.grid.voxel_size, h, 1e-12);
+  ASSERT_NEAR(cfl_a.grid.origin.z() + 5 * h, layer, 1e-12) << "no layer of voxels ends where the test needs one";
+
+  TriangleMesh mesh_b;
+  mesh_b.vertices = {{0, 0, 0}, {0.05, 0, 0}, {0, 0.05, 0}};
+  mesh_b.triangles = {{0, 1, 2}};
+  const MeshModel model_b = makeMeshModel(mesh_b);
+  // Inside one column of voxels; the second query's step (0.04 voxel) certifies with a margin of 0.16 voxel.
+  auto at = [&](double z) { return Eigen::Isometry3d(Eigen::Translation3d(0.05, 0.05, z)); };
+  const double heights[] = {layer - below - 0.04 * h, layer - below, layer - below + 0.07 * h};
+  DistanceCache cache;
+  const Eigen::Isometry3d X_WA = Eigen::Isometry3d::Identity();
+  for (double z : heights) {
+    const DistanceResult truth = bruteForceDistance(model_a, X_WA, model_b, at(z));
+    const DistanceResult r = computeDistance(cfl_a, X_WA, model_b, at(z), cache);
+    EXPECT_NEAR(r.distance, truth.distance, 1e-12) << "B at height " << z;
+  }
+  // The last query is the one this test is about: it must have come from the certificate.
+  EXPECT_EQ(cache.reused, 1) << "the certificate did not answer the last query; the test no longer checks it";
+  EXPECT_NEAR(bruteForceDistance(model_a, X_WA, model_b, at(heights[2])).distance, upper - heights[2], 1e-12)
+      << "the upper sheet should be the closest after B rises";
+}
+
 }  // namespace
 }  // namespace cfl

@@ -354,48 +354,48 @@ class Search {
             a_.grid.origin + a_.grid.voxel_size * rounded.matrix()};
   }
 
-  // The grid cell holding a point given in voxel edges from the grid's origin (clamped to the grid), and
-  // where its corners' distances sit: corner (i, j, k) of the cell at base + i + j step_j + k step_k.
-  struct CellCorners {
-    Eigen::Vector3d point;
+  // The grid cell holding a point (clamped to the grid) and the field at its eight corners, read once for
+  // the bounds that use both (cellLowerBound, farCornerLowerBound).
+  struct GridCell {
+    Eigen::Vector3d point;   // the point in voxel edges from the grid's origin
     Eigen::Vector3d corner;  // position of corner (0, 0, 0)
-    std::int64_t base, step_j, step_k;
+    double distance[8];      // corner_distance at corner (i, j, k) = distance[i + 2 j + 4 k]
   };
-  CellCorners cellCorners(const Eigen::Vector3d& point) const {
-    CellCorners cell;
-    cell.point = point;
+  GridCell cellAt(const Eigen::Vector3d& position) const {
+    GridCell cell;
+    cell.point = (position - a_.grid.origin) * inverse_voxel_size_;
     // The cell whose lower corner is point - 0.5 rounded; at an integer coordinate that may be the cell
     // below, which holds the point on its face.
-    const Eigen::Array3d lower = roundToInteger(point.array().max(0.5).min(corner_limit_ - 0.5) - 0.5);
-    cell.base = static_cast<std::int64_t>((lower * corner_stride_).sum());
+    const Eigen::Array3d lower = roundToInteger(cell.point.array().max(0.5).min(corner_limit_ - 0.5) - 0.5);
     cell.corner = a_.grid.origin + a_.grid.voxel_size * lower.matrix();
-    cell.step_j = static_cast<std::int64_t>(corner_stride_[1]);
-    cell.step_k = static_cast<std::int64_t>(corner_stride_[2]);
+    const double* d = a_.corner_distance.data() + static_cast<std::int64_t>((lower * corner_stride_).sum());
+    const auto step_j = static_cast<std::int64_t>(corner_stride_[1]);
+    const auto step_k = static_cast<std::int64_t>(corner_stride_[2]);
+    for (int corner = 0; corner < 8; ++corner) {
+      cell.distance[corner] = d[(corner & 1) + ((corner >> 1) & 1) * step_j + (corner >> 2) * step_k];
+    }
     return cell;
   }
 
   // A tighter and costlier sphereLowerBound: the best of the eight corners of the grid cell holding
   // `center` (the nearest corner alone loses up to |center - corner| whatever the direction to the mesh).
-  double cellLowerBound(const Eigen::Vector3d& center, double radius) const {
-    const VoxelGrid& grid = a_.grid;
-    const CellCorners cell = cellCorners((center - grid.origin) * inverse_voxel_size_);  // any cell gives a valid bound
+  // Any cell gives a valid bound.
+  double cellLowerBound(const GridCell& cell, const Eigen::Vector3d& center, double radius) const {
     // Squared offsets from `center` to the cell's two corner planes on each axis, then the eight corners'
-    // squared distances and field values as plain arrays: the square roots go two by two through the
-    // vector unit.
+    // squared distances as a plain array: the square roots go two by two through the vector unit.
     const Eigen::Vector3d offset = center - cell.corner;
-    const double h = grid.voxel_size;
+    const double h = a_.grid.voxel_size;
     const double dx[2] = {offset[0] * offset[0], (offset[0] - h) * (offset[0] - h)};
     const double dy[2] = {offset[1] * offset[1], (offset[1] - h) * (offset[1] - h)};
     const double dz[2] = {offset[2] * offset[2], (offset[2] - h) * (offset[2] - h)};
-    const double* distance = a_.corner_distance.data() + cell.base;
-    double squared[8], value[8];
+    double squared[8];
     for (int corner = 0; corner < 8; ++corner) {
-      const int i = corner & 1, j = (corner >> 1) & 1, k = corner >> 2;
-      squared[corner] = dx[i] + dy[j] + dz[k];
-      value[corner] = distance[i + j * cell.step_j + k * cell.step_k];
+      squared[corner] = dx[corner & 1] + dy[(corner >> 1) & 1] + dz[corner >> 2];
     }
     double field = -kInfinity;
-    for (int corner = 0; corner < 8; ++corner) field = std::max(field, value[corner] - std::sqrt(squared[corner]));
+    for (int corner = 0; corner < 8; ++corner) {
+      field = std::max(field, cell.distance[corner] - std::sqrt(squared[corner]));
+    }
     return fieldOrBoxBound(center, field) - radius;
   }
 
@@ -406,16 +406,17 @@ class Search {
   // which at short range is every piece near the answer. A corner k voxels out along the field's gradient
   // loses only about radius^2 / (2 k voxel) across a flat gap. On 300 bunny poses per band this took 23% to
   // 35% off the median query from overlapping to 50% apart and halved the nodes and triangles of B bounded.
-  double farCornerLowerBound(const Eigen::Vector3d corners[3], const Eigen::Vector3d& center) const {
-    return farCornerLowerBound(center, [&](const Eigen::Vector3d& position) {
+  // `cell`: the cell holding the piece's center.
+  double farCornerLowerBound(const GridCell& cell, const Eigen::Vector3d corners[3]) const {
+    return farCornerBound(cell, [&](const Eigen::Vector3d& position) {
       return std::max({(corners[0] - position).squaredNorm(), (corners[1] - position).squaredNorm(),
                        (corners[2] - position).squaredNorm()});
     });
   }
   // Box axes as columns, half extents along them, all in A's frame.
-  double farCornerLowerBound(const Eigen::Vector3d& box_center, const Eigen::Matrix3d& axes,
+  double farCornerLowerBound(const GridCell& cell, const Eigen::Vector3d& box_center, const Eigen::Matrix3d& axes,
                              const Eigen::Vector3d& half) const {
-    return farCornerLowerBound(box_center, [&](const Eigen::Vector3d& position) {
+    return farCornerBound(cell, [&](const Eigen::Vector3d& position) {
       // The farthest box corner takes, on each axis, the side away from `position`.
       const Eigen::Vector3d offset = box_center - position;
       return offset.squaredNorm() + half.squaredNorm() + 2 * half.dot((axes.transpose() * offset).cwiseAbs());
@@ -423,15 +424,12 @@ class Search {
   }
   // `farthestSquared(p)`: the squared distance from p to the piece's farthest point.
   template <class FarthestSquared>
-  double farCornerLowerBound(const Eigen::Vector3d& center, const FarthestSquared& farthestSquared) const {
-    const VoxelGrid& grid = a_.grid;
-    const CellCorners cell = cellCorners((center - grid.origin) * inverse_voxel_size_);
-    // The direction away from A: the field's gradient over the cell holding `center` (any direction gives
-    // valid bounds; this one gives tight ones).
-    const std::int64_t step_j = cell.step_j, step_k = cell.step_k;
-    const double* d = a_.corner_distance.data() + cell.base;
-    const double d000 = d[0], d100 = d[1], d010 = d[step_j], d110 = d[1 + step_j], d001 = d[step_k],
-                 d101 = d[1 + step_k], d011 = d[step_j + step_k], d111 = d[1 + step_j + step_k];
+  double farCornerBound(const GridCell& cell, const FarthestSquared& farthestSquared) const {
+    // The direction away from A: the field's gradient over the cell (any direction gives valid bounds; this
+    // one gives tight ones).
+    const double* d = cell.distance;
+    const double d000 = d[0], d100 = d[1], d010 = d[2], d110 = d[3], d001 = d[4], d101 = d[5], d011 = d[6],
+                 d111 = d[7];
     const Eigen::Vector3d gradient((d100 + d110 + d101 + d111) - (d000 + d010 + d001 + d011),
                                    (d010 + d110 + d011 + d111) - (d000 + d100 + d001 + d101),
                                    (d001 + d101 + d011 + d111) - (d000 + d100 + d010 + d110));
@@ -457,11 +455,12 @@ class Search {
     const Eigen::Vector4d& sphere = b_.spheres[t];
     const Eigen::Vector3d center = X_AB_.apply(sphere.head<3>());
     ++counters_.voxel_tests;
-    const double bound = cellLowerBound(center, sphere[3]);
+    const GridCell cell = cellAt(center);
+    const double bound = cellLowerBound(cell, center, sphere[3]);
     if (bound >= pruneThreshold()) return bound;
     Eigen::Vector3d corners[3];
     transformTriangle(t, corners);
-    return std::max(bound, farCornerLowerBound(corners, center));
+    return std::max(bound, farCornerLowerBound(cell, corners));
   }
 
   // Triangle tb of B against the CFLs of the voxels the box [lo, hi] covers (its bounding box, grown in a
@@ -671,7 +670,8 @@ class Search {
         // Larger nodes are rarely flat enough for the far corners to beat the sphere's bound (overlapping
         // bunnies: 1.59x with this limit, 1.41x without).
         const PlacedNode placed = place(n, center);
-        const double far = farCornerLowerBound(placed.obb_center, placed.obb_axes, placed.node->obb_half);
+        const double far =
+            farCornerLowerBound(cellAt(placed.obb_center), placed.obb_center, placed.obb_axes, placed.node->obb_half);
         offer(std::max(lower_bound, far), n, kAgainstGrid);
       } else {
         offer(lower_bound, n, kAgainstGrid);

@@ -242,7 +242,7 @@ class Search {
   }
   // mayBeCloser past the spheres' gap, for candidates already filtered on it at a threshold the search has
   // since lowered: again at the lowered one, it ruled out 5 of the 396 candidates per query on wuson at 2% of
-  // the diagonal, and skipping it took 2.5% off the query's instructions (torus knot 1.2%, bunny 0.7%).
+  // the diagonal, and skipping it took 2.4% off the query's instructions (torus knot 1.1%, bunny 0.7%).
   bool mayBeCloserBeyondSpheres(int a, const PreparedTriangle& tb, double threshold) const {
     const auto& c = mesh_a_.corners[a];
     const Eigen::Vector4d& plane = mesh_a_.planes[a];
@@ -496,8 +496,8 @@ class Search {
     const int code_limit = units < 255 ? int(units) + 1 : 256;
     const std::uint8_t* bounds_end = a_.list_entry_bounds.data() + a_.list_entry_bounds.size();
     // Voxels of the box that tb's plane misses by more than the margin hold no point within the margin of
-    // tb: on wuson at 2% of the diagonal, 15% of the box's voxels (instructions -2.5%; bunny -0.9%, torus
-    // knot -0.5%). A voxel reaches h/2 |n|_1 either side of its center along the unit normal n. The slack,
+    // tb: on wuson at 2% of the diagonal, 15% of the box's voxels (instructions -2.4%; bunny -0.9%, torus
+    // knot -0.4%). A voxel reaches h/2 |n|_1 either side of its center along the unit normal n. The slack,
     // 1e-9 of the coordinates' size, dwarfs the rounding of these sums and tb's corners' offsets from its
     // plane (a few eps, see makeMeshModel), so no voxel holding a point of tb is skipped. A degenerate
     // triangle's zero normal skips none.

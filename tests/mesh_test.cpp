@@ -14,6 +14,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <random>
 #include <string>
 
 namespace cfl {
@@ -145,6 +146,51 @@ TEST(MeshModel, CornersAreTheTrianglesVertices) {
   ASSERT_EQ(model.corners.size(), messy.triangles.size());
   for (std::size_t t = 0; t < messy.triangles.size(); ++t) {
     for (int k = 0; k < 3; ++k) EXPECT_EQ(model.corners[t][k], messy.vertices[messy.triangles[t][k]]) << "triangle " << t;
+  }
+}
+
+// The query prunes pairs on these spheres and on the disk each cuts from its triangle's plane: every point of
+// a triangle must be inside its sphere, and the center must lie in the plane. The sphere must also be the
+// smallest: no center among random points of the plane near it (an independent search) needs less radius.
+TEST(MeshModel, SpheresAreTheSmallestHoldingEachTriangleCenteredInItsPlane) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> unit(-1, 1);
+  TriangleMesh mesh;
+  auto add = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+    const int first = int(mesh.vertices.size());
+    mesh.vertices.insert(mesh.vertices.end(), {a, b, c});
+    mesh.triangles.push_back({first, first + 1, first + 2});
+  };
+  for (int n = 0; n < 200; ++n) {
+    add(Eigen::Vector3d(unit(rng), unit(rng), unit(rng)), Eigen::Vector3d(unit(rng), unit(rng), unit(rng)),
+        Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
+  }
+  add({0, 0, 0}, {1, 0, 0}, {0, 1, 0});                  // right
+  add({0, 0, 0}, {1, 0, 0}, {0.5, 1e-9, 0});             // sliver, obtuse
+  add({0, 0, 0}, {1, 0, 0}, {2, 0, 0});                  // collinear
+  add({1, 1, 1}, {1, 1, 1}, {1, 1, 1});                  // a point
+  add({0, 0, 0}, {1, 0, 0}, {0.5, std::sqrt(0.75), 0});  // equilateral
+  const MeshModel model = makeMeshModel(mesh);
+  for (std::size_t t = 0; t < model.corners.size(); ++t) {
+    const auto& c = model.corners[t];
+    const Eigen::Vector3d center = model.spheres[t].head<3>();
+    const double radius = model.spheres[t][3];
+    const double size = (c[1] - c[0]).norm() + (c[2] - c[1]).norm() + (c[0] - c[2]).norm();
+    const double slack = 1e-14 * (1 + size);
+    auto reach = [&](const Eigen::Vector3d& from) {
+      return std::max({(c[0] - from).norm(), (c[1] - from).norm(), (c[2] - from).norm()});
+    };
+    EXPECT_LE(reach(center), radius + slack) << "triangle " << t;
+    const Eigen::Vector3d normal = (c[1] - c[0]).cross(c[2] - c[0]);
+    if (normal.norm() > 1e-6 * size * size) {
+      EXPECT_NEAR(normal.normalized().dot(center - c[0]), 0, slack) << "triangle " << t;
+    }
+    // Random points of the triangle's plane (its corners' affine hull) near the center.
+    for (int k = 0; k < 200; ++k) {
+      const double u = 0.3 * unit(rng), v = 0.3 * unit(rng);
+      const Eigen::Vector3d other = center + u * (c[1] - c[0]) + v * (c[2] - c[0]);
+      EXPECT_GE(reach(other), radius - slack) << "triangle " << t << " sample " << k;
+    }
   }
 }
 

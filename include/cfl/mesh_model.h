@@ -16,7 +16,8 @@ namespace cfl {
 struct MeshModel {
   TriangleMesh mesh;
   std::vector<std::array<Eigen::Vector3d, 3>> corners;  ///< corners[t] = the 3 vertices of triangle t, frame M.
-  /// A sphere around each triangle (center and radius, frame M): a cheap lower bound before exact tests.
+  /// The smallest sphere holding each triangle (center and radius, frame M; the center lies in the triangle's
+  /// plane): a cheap lower bound before exact tests.
   std::vector<Eigen::Vector4d> spheres;
   /// Each triangle's plane (unit normal n, offset n . corner 0; all zero for a degenerate triangle): the
   /// distance to the plane bounds the distance to the triangle from below.

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -148,6 +149,32 @@ TEST(Bvh, InvariantsHoldOnSeveralMeshesAndLeafSizes) {
     for (int max_leaf_size : {1, 2, 4, 8}) {
       const Bvh bvh = buildBvh(named.mesh, max_leaf_size);
       checkInvariants(named.mesh, bvh, max_leaf_size, named.name + " leaf size " + std::to_string(max_leaf_size));
+    }
+  }
+}
+
+// The query's node bounds lose the node's radius, so spheres should be near the smallest: never larger than
+// the sphere about the box's center, and within Jung's theorem (the smallest sphere holding a point set of
+// diameter D has radius <= D sqrt(3/8) < 0.6124 D), checked on nodes small enough for all vertex pairs.
+TEST(Bvh, SpheresAreNoLargerThanTheBoxCenteredOneAndWithinJungsBound) {
+  for (const NamedMesh& named : testMeshes()) {
+    SCOPED_TRACE(named.name);
+    const Bvh bvh = buildBvh(named.mesh, 1);
+    for (std::size_t i = 0; i < bvh.nodes.size(); ++i) {
+      const BvhNode& node = bvh.nodes[i];
+      std::vector<Eigen::Vector3d> points;
+      for (int n = node.subtree_first; n < node.subtree_first + node.subtree_count; ++n) {
+        for (int index : named.mesh.triangles[bvh.triangle_ids[n]]) points.push_back(named.mesh.vertices[index]);
+      }
+      double box_radius = 0;
+      for (const auto& p : points) box_radius = std::max(box_radius, (p - node.box.center()).norm());
+      EXPECT_LE(node.radius, box_radius * (1 + 1e-12)) << "node " << i;
+      if (node.subtree_count > 64) continue;
+      double diameter = 0;
+      for (const auto& p : points) {
+        for (const auto& q : points) diameter = std::max(diameter, (p - q).norm());
+      }
+      EXPECT_LE(node.radius, 0.6124 * diameter * (1 + 1e-12)) << "node " << i;
     }
   }
 }

@@ -45,7 +45,11 @@ constexpr int kSmallSubtreeTriangles = 8;
 struct RigidTransform {
   Eigen::Matrix3d rotation;
   Eigen::Vector3d translation;
-  Eigen::Vector3d apply(const Eigen::Vector3d& p) const { return rotation * p + translation; }
+  // By columns: Eigen's matrix-vector product went through an out-of-line assignment loop; this form took
+  // 0.9% to 1.6% off the instructions per query at 0.5% and 2% of the diagonal (forcing it inline cost more).
+  Eigen::Vector3d apply(const Eigen::Vector3d& p) const {
+    return rotation.col(0) * p[0] + rotation.col(1) * p[1] + rotation.col(2) * p[2] + translation;
+  }
 };
 
 RigidTransform relativePose(const Eigen::Isometry3d& X_WA, const Eigen::Isometry3d& X_WB) {

@@ -50,7 +50,7 @@ Eigen::Vector3d enclosingCenter(const ForEachPoint& forEachPoint, const Eigen::V
   Eigen::Vector3d center = start, best = start;
   double best_reach = std::numeric_limits<double>::infinity();
   for (int i = 1; i <= 24; ++i) {
-    Eigen::Vector3d farthest;
+    Eigen::Vector3d farthest = center;  // stays put if every distance is NaN
     const double reach = reachSquared(center, &farthest);
     if (reach < best_reach) best_reach = reach, best = center;
     center += (farthest - center) / double(i + 1);
@@ -138,7 +138,9 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
       };
       const Eigen::Vector3d refined = enclosingCenter(forEachVertex, center);
       double refined_squared = 0;
-      forEachVertex([&](const Eigen::Vector3d& p) { refined_squared = std::max(refined_squared, (p - refined).squaredNorm()); });
+      forEachVertex([&](const Eigen::Vector3d& p) {
+        refined_squared = std::max(refined_squared, (p - refined).squaredNorm());
+      });
       if (refined_squared < radius_squared) {
         node.center = refined;
         node.radius = std::sqrt(refined_squared);

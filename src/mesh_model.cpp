@@ -24,28 +24,24 @@ double reachFrom(const std::array<Eigen::Vector3d, 3>& c, const Eigen::Vector3d&
 Eigen::Vector4d boundingSphere(const std::array<Eigen::Vector3d, 3>& c) {
   Eigen::Vector3d center = (c[0] + c[1] + c[2]) / 3.0;
   double radius = reachFrom(c, center);
-  for (int k = 0; k < 3; ++k) {
-    const Eigen::Vector3d& apex = c[k];
+  Eigen::Vector3d smallest = center;
+  bool found = false;
+  for (int k = 0; k < 3 && !found; ++k) {
     const Eigen::Vector3d& p = c[(k + 1) % 3];
     const Eigen::Vector3d& q = c[(k + 2) % 3];
-    if ((p - apex).dot(q - apex) <= 0) {  // the corner at `apex` is right or obtuse
-      const Eigen::Vector3d mid = 0.5 * (p + q);
-      const double r = reachFrom(c, mid);
-      if (r < radius) center = mid, radius = r;
-      Eigen::Vector4d sphere;
-      sphere << center, radius;
-      return sphere;
+    if ((p - c[k]).dot(q - c[k]) <= 0) {  // right or obtuse at corner k: the opposite edge is a diameter
+      smallest = 0.5 * (p + q);
+      found = true;
     }
   }
   const Eigen::Vector3d ab = c[1] - c[0], ac = c[2] - c[0];
   const Eigen::Vector3d n = ab.cross(ac);
   const double nn = n.squaredNorm();
-  if (nn > 0) {
-    const Eigen::Vector3d circumcenter =
-        c[0] + (ac.squaredNorm() * n.cross(ab) + ab.squaredNorm() * ac.cross(n)) / (2 * nn);
-    const double r = reachFrom(c, circumcenter);
-    if (r < radius) center = circumcenter, radius = r;
+  if (!found && nn > 0) {  // acute: the circumcenter
+    smallest = c[0] + (ac.squaredNorm() * n.cross(ab) + ab.squaredNorm() * ac.cross(n)) / (2 * nn);
   }
+  const double smallest_radius = reachFrom(c, smallest);
+  if (smallest_radius < radius) center = smallest, radius = smallest_radius;
   Eigen::Vector4d sphere;
   sphere << center, radius;
   return sphere;

@@ -1,6 +1,8 @@
 #include "cfl/mesh_io.h"
 
 #include "cfl/error.h"
+#include "detail/mesh_assembly.h"
+#include "detail/obj_reader.h"
 
 #include <Eigen/Geometry>
 #include <assimp/Importer.hpp>
@@ -12,6 +14,7 @@
 #include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <string>
 #include <sys/stat.h>
@@ -23,90 +26,6 @@ namespace {
 
 [[noreturn]] void fail(const std::string& path, const std::string& reason) {
   throw Error(path + ": " + reason);
-}
-
-// Key for merging vertices with bit-identical positions; -0.0 and 0.0 are the same point.
-struct PositionKey {
-  double x, y, z;
-  bool operator==(const PositionKey& o) const { return x == o.x && y == o.y && z == o.z; }
-};
-
-struct PositionHash {
-  std::size_t operator()(const PositionKey& k) const {
-    auto bits = [](double v) {
-      if (v == 0.0) v = 0.0;  // folds -0.0 into +0.0
-      std::uint64_t b;
-      std::memcpy(&b, &v, sizeof b);
-      return b;
-    };
-    std::uint64_t h = bits(k.x) * 0x9E3779B97F4A7C15ull;
-    h ^= bits(k.y) + 0x7F4A7C159E3779B9ull + (h << 6) + (h >> 2);
-    h ^= bits(k.z) + 0x94D049BB133111EBull + (h << 6) + (h >> 2);
-    return static_cast<std::size_t>(h);
-  }
-};
-
-// Appends the n - 2 triangles of the polygon `corners` (vertex ids in order) to `out`, consecutively and
-// with the polygon's orientation. Done here rather than by aiProcess_Triangulate, which reorders the corners
-// of some triangles and trips an assertion (abort) on some malformed files. Convex polygons, degenerate ones
-// and those of more than kMaxEarClipping corners are fanned from corner 0; other concave polygons are ear
-// clipped in the plane of their Newell normal, falling back to the fan when they are not simple. Either way
-// the count, and with it every later triangle id, does not depend on the geometry.
-void triangulatePolygon(const std::vector<Eigen::Vector3d>& vertices, const std::vector<int>& corners,
-                        std::vector<std::array<int, 3>>* out) {
-  constexpr std::size_t kMaxEarClipping = 256;  // ear clipping here is O(n^3)
-  const std::size_t n = corners.size();
-  const std::size_t first = out->size();
-  auto fan = [&] {
-    out->resize(first);
-    for (std::size_t c = 1; c + 1 < n; ++c) out->push_back({corners[0], corners[c], corners[c + 1]});
-  };
-  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
-  for (std::size_t i = 0; i < n; ++i) {
-    normal += vertices[std::size_t(corners[i])].cross(vertices[std::size_t(corners[(i + 1) % n])]);
-  }
-  if (!(normal.norm() > 0) || !normal.allFinite()) return fan();
-  // (u, v, normal) is right-handed, so the polygon winds counter-clockwise in (u, v).
-  const Eigen::Vector3d w = normal.normalized();
-  const Eigen::Vector3d u = w.unitOrthogonal();
-  const Eigen::Vector3d v = w.cross(u);
-  std::vector<Eigen::Vector2d> p(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d& q = vertices[std::size_t(corners[i])];
-    p[i] = Eigen::Vector2d(q.dot(u), q.dot(v));
-  }
-  auto turn = [&](std::size_t a, std::size_t b, std::size_t c) {
-    const Eigen::Vector2d ab = p[b] - p[a], ac = p[c] - p[a];
-    return ab.x() * ac.y() - ab.y() * ac.x();
-  };
-  bool convex = true;
-  for (std::size_t i = 0; i < n && convex; ++i) convex = turn(i, (i + 1) % n, (i + 2) % n) >= 0;
-  if (convex || n > kMaxEarClipping) return fan();
-
-  std::vector<std::size_t> left(n);
-  for (std::size_t i = 0; i < n; ++i) left[i] = i;
-  while (left.size() > 3) {
-    const std::size_t m = left.size();
-    bool clipped = false;
-    for (std::size_t k = 0; k < m && !clipped; ++k) {
-      const std::size_t a = left[(k + m - 1) % m], b = left[k], c = left[(k + 1) % m];
-      if (!(turn(a, b, c) > 0)) continue;  // reflex or flat corner
-      bool blocked = false;
-      for (std::size_t j : left) {
-        if (j == a || j == b || j == c) continue;
-        if (turn(a, b, j) >= 0 && turn(b, c, j) >= 0 && turn(c, a, j) >= 0) {
-          blocked = true;
-          break;
-        }
-      }
-      if (blocked) continue;
-      out->push_back({corners[a], corners[b], corners[c]});
-      left.erase(left.begin() + std::ptrdiff_t(k));
-      clipped = true;
-    }
-    if (!clipped) return fan();
-  }
-  out->push_back({corners[left[0]], corners[left[1]], corners[left[2]]});
 }
 
 // An OFF file's header declares its vertex and face counts, and assimp 5.2 allocates for them before reading
@@ -145,8 +64,7 @@ bool hasExtension(const std::string& path, const char* extension) {
 struct SceneFlattener {
   const aiScene& scene;
   const std::string& path;
-  TriangleMesh mesh;
-  std::unordered_map<PositionKey, int, PositionHash> vertex_ids;
+  detail::MeshAssembler assembler;
   std::size_t skipped_faces = 0;  // points and lines
   std::vector<int> polygon_;      // scratch
 
@@ -155,9 +73,7 @@ struct SceneFlattener {
       fail(path, "vertex " + std::to_string(vertex_index) + " of mesh " + std::to_string(mesh_index) +
                      " has a non-finite coordinate");
     }
-    auto [it, inserted] = vertex_ids.emplace(PositionKey{p.x(), p.y(), p.z()}, int(mesh.vertices.size()));
-    if (inserted) mesh.vertices.push_back(p);
-    return it->second;
+    return assembler.vertexId(p);
   }
 
   void addMesh(unsigned mesh_index, const aiMatrix4x4& X_WN) {
@@ -188,13 +104,9 @@ struct SceneFlattener {
           ids[v] = vertexId(Eigen::Vector3d(p.x, p.y, p.z), mesh_index, v);
         }
       }
-      if (face.mNumIndices == 3) {
-        mesh.triangles.push_back({ids[face.mIndices[0]], ids[face.mIndices[1]], ids[face.mIndices[2]]});
-        continue;
-      }
       polygon_.clear();
       for (unsigned c = 0; c < face.mNumIndices; ++c) polygon_.push_back(ids[face.mIndices[c]]);
-      triangulatePolygon(mesh.vertices, polygon_, &mesh.triangles);
+      assembler.addPolygon(polygon_);
     }
   }
 
@@ -225,6 +137,26 @@ struct SceneFlattener {
   }
 };
 
+// The mesh read from `path`, refused with the path when it holds no triangle or fails validateMesh.
+TriangleMesh checked(const std::string& path, TriangleMesh mesh, const std::string& contents) {
+  if (mesh.triangles.empty()) fail(path, "the file holds no triangle (" + contents + ")");
+  try {
+    validateMesh(mesh);
+  } catch (const Error& e) {
+    fail(path, e.what());
+  }
+  return mesh;
+}
+
+TriangleMesh loadObj(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) fail(path, std::string("read error: ") + std::strerror(errno));
+  std::size_t skipped = 0;
+  TriangleMesh mesh = detail::readObj(path, text, &skipped);
+  return checked(path, std::move(mesh), std::to_string(skipped) + " point or line primitives");
+}
+
 }  // namespace
 
 TriangleMesh loadMesh(const std::string& path) {
@@ -237,12 +169,13 @@ TriangleMesh loadMesh(const std::string& path) {
     if (!probe) fail(path, std::string("cannot open for reading: ") + std::strerror(errno));
   }
   if (info.st_size == 0) fail(path, "the file is empty");
+  if (hasExtension(path, "obj")) return loadObj(path);
   if (hasExtension(path, "off")) checkOffHeader(path, info.st_size);
 
   Assimp::Importer importer;
   // No post-processing at all: FindDegenerates, SortByPType and FindInvalidData would drop or move
   // triangles the user's ids refer to, JoinIdenticalVertices is done here on positions alone (after the node
-  // transforms), and polygons are triangulated here (see triangulatePolygon).
+  // transforms), and polygons are triangulated here (see MeshAssembler::addPolygon).
   const aiScene* scene = importer.ReadFile(path, 0);
   if (scene == nullptr) {
     std::string reason = importer.GetErrorString();
@@ -251,19 +184,11 @@ TriangleMesh loadMesh(const std::string& path) {
   }
   if (scene->mRootNode == nullptr) fail(path, "the file holds no scene graph (no mesh)");
 
-  SceneFlattener flattener{*scene, path, {}, {}, 0, {}};
+  SceneFlattener flattener{*scene, path, {}, 0, {}};
   flattener.visit(*scene->mRootNode, aiMatrix4x4());
-  if (flattener.mesh.triangles.empty()) {
-    std::string reason = "the file holds no triangle (" + std::to_string(scene->mNumMeshes) + " meshes";
-    if (flattener.skipped_faces > 0) reason += ", " + std::to_string(flattener.skipped_faces) + " point or line primitives";
-    fail(path, reason + ")");
-  }
-  try {
-    validateMesh(flattener.mesh);
-  } catch (const Error& e) {
-    fail(path, e.what());
-  }
-  return std::move(flattener.mesh);
+  std::string contents = std::to_string(scene->mNumMeshes) + " meshes";
+  if (flattener.skipped_faces > 0) contents += ", " + std::to_string(flattener.skipped_faces) + " point or line primitives";
+  return checked(path, flattener.assembler.take(), contents);
 }
 
 }  // namespace cfl

@@ -14,6 +14,7 @@
 #include <cstring>
 #include <fstream>
 #include <functional>
+#include <random>
 #include <string>
 #include <unistd.h>
 
@@ -150,6 +151,18 @@ class MeshIoTest : public ::testing::Test {
   std::string dir_;
 };
 
+// Every refusal is a cfl::Error whose message starts with the path and contains the reason.
+void expectErrorNaming(const std::string& file, const std::string& reason) {
+  try {
+    loadMesh(file);
+    FAIL() << "loading " << file << " did not throw";
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    EXPECT_EQ(message.rfind(file, 0), 0u) << message;
+    EXPECT_NE(message.find(reason), std::string::npos) << message;
+  }
+}
+
 TEST_F(MeshIoTest, EveryFormatRoundTripsTrianglesInFileOrder) {
   expectRoundTripInEveryFormat(test::makeTorus(1.0, 0.35, 12, 8), "torus");
   expectRoundTripInEveryFormat(test::makeTriangleSoup(60, 7), "soup");
@@ -165,7 +178,86 @@ TEST_F(MeshIoTest, DegenerateAndDuplicateTrianglesKeepTheirIds) {
 TEST_F(MeshIoTest, BundledBunnyLoadsWithItsTriangleCount) {
   const TriangleMesh independent = test::loadBunny();  // the test support's own OBJ reader
   const TriangleMesh loaded = loadMesh(std::string(CFL_DATA_DIR) + "/bunny.obj");
-  expectSameTrianglesInOrder(roundToFloat(independent), loaded, "bunny.obj");
+  expectSameTrianglesInOrder(independent, loaded, "bunny.obj");
+  // OBJ is read natively, in double: every corner is the support reader's to the bit.
+  for (std::size_t t = 0; t < loaded.triangles.size(); ++t) {
+    for (int c = 0; c < 3; ++c) {
+      ASSERT_EQ(loaded.vertices[std::size_t(loaded.triangles[t][c])],
+                independent.vertices[std::size_t(independent.triangles[t][c])])
+          << "corner " << c << " of triangle " << t;
+    }
+  }
+}
+
+TEST_F(MeshIoTest, ObjCoordinatesKeepEveryBitOfTheirDoubles) {
+  // Coordinates a float cannot hold (a part 1000 units from the origin with micrometre detail, a mesh of
+  // 1e-7 units), written with 17 significant digits: the distances are exact only if these survive.
+  test::Rng rng(11);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  TriangleMesh mesh;
+  for (const double scale : {1e-7, 1.0, 1e3, 1e15}) {
+    for (int t = 0; t < 20; ++t) {
+      const int first = int(mesh.vertices.size());
+      for (int c = 0; c < 3; ++c) {
+        mesh.vertices.emplace_back(scale * (1 + 1e-3 * unit(rng)), scale * unit(rng), -scale * unit(rng));
+      }
+      mesh.triangles.push_back({first, first + 1, first + 2});
+    }
+  }
+  std::string text;
+  char buffer[100];
+  for (const auto& v : mesh.vertices) {
+    std::snprintf(buffer, sizeof buffer, "v %.17g %.17g %.17g\n", v.x(), v.y(), v.z());
+    text += buffer;
+  }
+  for (const auto& t : mesh.triangles) text += "f " + std::to_string(t[0] + 1) + " " + std::to_string(t[1] + 1) + " " + std::to_string(t[2] + 1) + "\n";
+  writeText(path("precise.obj"), text);
+  const TriangleMesh loaded = loadMesh(path("precise.obj"));
+  ASSERT_EQ(loaded.triangles.size(), mesh.triangles.size());
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    for (int c = 0; c < 3; ++c) {
+      ASSERT_EQ(loaded.vertices[std::size_t(loaded.triangles[t][c])], mesh.vertices[std::size_t(mesh.triangles[t][c])])
+          << "corner " << c << " of triangle " << t;
+    }
+  }
+}
+
+TEST_F(MeshIoTest, ObjFaceFormsCommentsAndContinuationsAreRead) {
+  // Every corner form (v, v/t, v//n, v/t/n, negative), a comment after data, a continued line, CRLF line
+  // ends, a face before the vertices it names, and faces split by objects, groups and materials, which
+  // keep their file order (assimp would have regrouped them by material).
+  writeText(path("forms.obj"),
+            "# header\r\nmtllib none.mtl\r\no first\r\nv 0 0 0\r\nv 1 0 0 # trailing comment\r\nv 0 1 0\r\n"
+            "vt 0 0\nvn 0 0 1\nusemtl red\nf 1/1 2/1/1 3//1\n"
+            "g second\nusemtl blue\nf -3 -2 \\\n  -1\n"
+            "usemtl red\ns off\nf 4 5 6\nv 0 0 7\nv 1 0 7\nv 0 1 7 1.0\np 1\nl 1 2\n");
+  const TriangleMesh m = loadMesh(path("forms.obj"));
+  ASSERT_EQ(m.triangles.size(), 3u);
+  EXPECT_EQ(m.triangles[0], m.triangles[1]);  // the same corners named two ways
+  EXPECT_EQ(m.vertices.size(), 6u);
+  for (int c = 0; c < 3; ++c) EXPECT_EQ(m.vertices[std::size_t(m.triangles[2][c])].z(), 7.0);
+  EXPECT_EQ(m.vertices[std::size_t(m.triangles[0][1])], Eigen::Vector3d(1, 0, 0));
+}
+
+TEST_F(MeshIoTest, ObjErrorsNameTheLine) {
+  const std::string head = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";  // lines 1-3
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"v 0 0 0\nv 1 x 0\n", "line 2: coordinate 'x' is not a number"},
+      {"v 0 0 0\nv 1 0\n", "line 2: vertex 2 has 2 coordinates, needs 3"},
+      {"v 0 0 0\nv 1 0 nan\n", "line 2: coordinate 'nan' is not finite"},
+      {"v 0 0 0\nv 1 0 1e999\n", "line 2: coordinate '1e999' is beyond the double range"},
+      {head + "f 1 2 0\n", "line 4: face corner '0' has vertex index 0"},
+      {head + "f 1 2 -4\n", "line 4: face corner '-4' counts back 4 vertices, but only 3"},
+      {head + "f 1 2\n", "line 4: a face needs at least 3 corners, this one has 2"},
+      {head + "f 1 2 a\n", "line 4: face corner 'a' does not start with a vertex index"},
+      {head + "# c\nf 1 2 3\nf 1 \\\n 2 7\nf 1 2 3\n", "line 6: a face refers to vertex 7, but the file defines 3"},
+  };
+  int n = 0;
+  for (const auto& [text, reason] : cases) {
+    const std::string file = path("bad" + std::to_string(n++) + ".obj");
+    writeText(file, text);
+    expectErrorNaming(file, reason);
+  }
 }
 
 TEST_F(MeshIoTest, PolygonsBecomeConsecutiveTrianglesCoveringThem) {
@@ -265,18 +357,6 @@ TEST_F(MeshIoTest, SharedPositionsAreMergedIntoOneVertex) {
   writeText(path("torus.stl"), stlBinary(torus));
   const TriangleMesh m = loadMesh(path("torus.stl"));
   EXPECT_EQ(m.vertices.size(), torus.vertices.size());
-}
-
-// Every refusal is a cfl::Error whose message starts with the path and contains the reason.
-void expectErrorNaming(const std::string& file, const std::string& reason) {
-  try {
-    loadMesh(file);
-    FAIL() << "loading " << file << " did not throw";
-  } catch (const Error& e) {
-    const std::string message = e.what();
-    EXPECT_EQ(message.rfind(file, 0), 0u) << message;
-    EXPECT_NE(message.find(reason), std::string::npos) << message;
-  }
 }
 
 TEST_F(MeshIoTest, MissingFileIsRefusedByName) { expectErrorNaming(path("nope.obj"), "No such file"); }

@@ -53,16 +53,11 @@ std::string objText(const TriangleMesh& m) {
   std::string s;
   char line[128];
   for (const auto& v : m.vertices) {
-    std::snprintf(line, sizeof line, "v %.9g %.9g %.9g\n", v.x(), v.y(), v.z());
+    std::snprintf(line, sizeof line, "v %.17g %.17g %.17g\n", v.x(), v.y(), v.z());
     s += line;
   }
   for (const auto& t : m.triangles) s += "f " + std::to_string(t[0] + 1) + " " + std::to_string(t[1] + 1) + " " + std::to_string(t[2] + 1) + "\n";
   return s;
-}
-
-TriangleMesh roundToFloat(TriangleMesh mesh) {
-  for (auto& v : mesh.vertices) v = v.cast<float>().cast<double>();
-  return mesh;
 }
 
 class ToolCliTest : public ::testing::Test {
@@ -190,9 +185,9 @@ double distanceToTriangle(const TriangleMesh& mesh, int t, const Eigen::Isometry
 }
 
 TEST_F(ToolCliTest, DistanceBothMethodsAgreeWithEachOtherAndWithBruteForce) {
-  // Float-representable meshes, so what the tool reads through assimp is exactly these.
-  const TriangleMesh a = roundToFloat(test::makeTorusKnot(2, 3, 0.5, 0.15, 48, 5));
-  const TriangleMesh b = roundToFloat(test::makeTorus(0.6, 0.2, 16, 8));
+  // Written with 17 digits, which the tool's OBJ reader turns back into exactly these doubles.
+  const TriangleMesh a = test::makeTorusKnot(2, 3, 0.5, 0.15, 48, 5);
+  const TriangleMesh b = test::makeTorus(0.6, 0.2, 16, 8);
   const std::string path_a = writeMesh("knot.obj", a), path_b = writeMesh("torus.obj", b);
   const MeshModel model_a = makeMeshModel(a), model_b = makeMeshModel(b);
   const double diagonal = std::max(model_a.bounds.diagonal(), model_b.bounds.diagonal());
@@ -245,7 +240,7 @@ TEST_F(ToolCliTest, DistanceBothMethodsAgreeWithEachOtherAndWithBruteForce) {
 }
 
 TEST_F(ToolCliTest, BuildSavesAModelThatInfoReadsBack) {
-  const std::string mesh = writeMesh("knot.obj", roundToFloat(test::makeTorusKnot(2, 3, 1.0, 0.3, 32, 5)));
+  const std::string mesh = writeMesh("knot.obj", test::makeTorusKnot(2, 3, 1.0, 0.3, 32, 5));
   const ToolRun build = run({"build", mesh, "-o", path("knot.cfl"), "--resolution", "10"});
   ASSERT_EQ(build.status, 0) << build.err;
   const ToolRun info = run({"info", path("knot.cfl")});
@@ -264,7 +259,7 @@ TEST_F(ToolCliTest, BuildSavesAModelThatInfoReadsBack) {
 }
 
 TEST_F(ToolCliTest, SmallBenchRunPassesItsExactnessCheckAndWritesJson) {
-  const std::string mesh = writeMesh("torus.obj", roundToFloat(test::makeTorus(1.0, 0.35, 16, 8)));
+  const std::string mesh = writeMesh("torus.obj", test::makeTorus(1.0, 0.35, 16, 8));
   const ToolRun r = run({"bench", mesh, "--queries", "4", "--bands", "0,0.05", "--repeats", "1", "--resolution", "10",
                      "--json", path("out.json")});
   ASSERT_EQ(r.status, 0) << r.err;
@@ -298,7 +293,7 @@ double numberAfter(const std::string& text, const std::string& label) {
 }
 
 TEST_F(ToolCliTest, BenchMovingAloneReportsColdWarmCachedAndObbrssOverTheRequestedFrames) {
-  const std::string mesh = writeMesh("torus.obj", roundToFloat(test::makeTorus(1.0, 0.35, 16, 8)));
+  const std::string mesh = writeMesh("torus.obj", test::makeTorus(1.0, 0.35, 16, 8));
   const ToolRun r = run({"bench", mesh, "--no-table", "--moving", "20", "--queries", "2", "--repeats", "1",
                          "--resolution", "10"});
   ASSERT_EQ(r.status, 0) << r.err << r.out;
@@ -336,7 +331,7 @@ TEST_F(ToolCliTest, BenchMovingAloneReportsColdWarmCachedAndObbrssOverTheRequest
 }
 
 TEST_F(ToolCliTest, BenchMovingSlowlyIsMostlyAnsweredByTheCacheAndStaysExact) {
-  const std::string mesh = writeMesh("torus.obj", roundToFloat(test::makeTorus(1.0, 0.35, 16, 8)));
+  const std::string mesh = writeMesh("torus.obj", test::makeTorus(1.0, 0.35, 16, 8));
   const ToolRun r = run({"bench", mesh, "--no-table", "--moving", "1500", "--queries", "2", "--repeats", "1",
                          "--resolution", "10"});
   ASSERT_EQ(r.status, 0) << r.err << r.out;
@@ -349,7 +344,7 @@ TEST_F(ToolCliTest, BenchMovingSlowlyIsMostlyAnsweredByTheCacheAndStaysExact) {
 }
 
 TEST_F(ToolCliTest, BenchApproximateSectionHoldsEveryBandWithinRelErr) {
-  const std::string mesh = writeMesh("torus.obj", roundToFloat(test::makeTorus(1.0, 0.35, 16, 8)));
+  const std::string mesh = writeMesh("torus.obj", test::makeTorus(1.0, 0.35, 16, 8));
   const ToolRun r = run({"bench", mesh, "--no-table", "--rel-err", "0.1", "--abs-err", "1", "--queries", "2",
                          "--bands", "0,0.02,0.3", "--repeats", "1", "--resolution", "10"});
   ASSERT_EQ(r.status, 0) << r.err << r.out;
@@ -374,7 +369,7 @@ TEST_F(ToolCliTest, BenchApproximateSectionHoldsEveryBandWithinRelErr) {
 
 TEST_F(ToolCliTest, BenchRelErrWithoutAbsErrStaysExact) {
   // FCL's rule needs both tolerances to skip a step, so abs_err = 0 leaves the query exact.
-  const std::string mesh = writeMesh("torus.obj", roundToFloat(test::makeTorus(1.0, 0.35, 16, 8)));
+  const std::string mesh = writeMesh("torus.obj", test::makeTorus(1.0, 0.35, 16, 8));
   const ToolRun r = run({"bench", mesh, "--no-table", "--rel-err", "0.5", "--queries", "3", "--bands", "0.02,0.3",
                          "--repeats", "1", "--resolution", "10"});
   ASSERT_EQ(r.status, 0) << r.err << r.out;

@@ -1,0 +1,173 @@
+#include "detail/obj_reader.h"
+
+#include "cfl/error.h"
+#include "detail/mesh_assembly.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <string_view>
+#include <vector>
+
+namespace cfl::detail {
+namespace {
+
+bool isSpace(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
+
+// The whitespace-separated tokens of one logical line, up to a '#' that starts a token (a comment).
+class Tokens {
+ public:
+  explicit Tokens(std::string_view line) : line_(line) {}
+  // The next token, or an empty view at the end.
+  std::string_view next() {
+    while (position_ < line_.size() && isSpace(line_[position_])) ++position_;
+    const std::size_t begin = position_;
+    if (begin < line_.size() && line_[begin] == '#') position_ = line_.size();
+    while (position_ < line_.size() && !isSpace(line_[position_])) ++position_;
+    return line_.substr(begin, position_ - begin);
+  }
+
+ private:
+  std::string_view line_;
+  std::size_t position_ = 0;
+};
+
+struct Reader {
+  const std::string& path;
+  std::size_t line_number = 0;  // of the logical line being read (its first physical line)
+
+  [[noreturn]] void fail(const std::string& reason) const {
+    throw Error(path + ": line " + std::to_string(line_number) + ": " + reason);
+  }
+
+  double number(std::string_view token, const char* what) const {
+    std::string_view digits = token;
+    if (!digits.empty() && digits[0] == '+') digits.remove_prefix(1);  // from_chars takes no '+'
+    double value = 0;
+    const auto [end, error] = std::from_chars(digits.data(), digits.data() + digits.size(), value);
+    if (digits.empty() || error == std::errc::invalid_argument || end != digits.data() + digits.size()) {
+      fail(std::string(what) + " '" + std::string(token) + "' is not a number");
+    }
+    if (error == std::errc::result_out_of_range) {
+      // Below the smallest double (a negative exponent) the nearest double is 0, harmless to any query;
+      // beyond the largest there is none. from_chars leaves `value` unset in both cases.
+      const std::size_t exponent = digits.find_first_of("eE");
+      if (exponent == std::string_view::npos || exponent + 1 >= digits.size() || digits[exponent + 1] != '-') {
+        fail(std::string(what) + " '" + std::string(token) + "' is beyond the double range");
+      }
+      value = 0;
+    }
+    if (!std::isfinite(value)) fail(std::string(what) + " '" + std::string(token) + "' is not finite");
+    return value;
+  }
+
+  // The 0-based vertex a face corner names ("i", "i/t", "i//n" or "i/t/n"; negative i counts back from the
+  // last vertex defined so far). The range is checked once the whole file is read: positive indices may
+  // name vertices defined further down.
+  std::int64_t corner(std::string_view token, std::int64_t vertices_so_far) const {
+    const std::string_view index = token.substr(0, token.find('/'));
+    std::int64_t value = 0;
+    const auto [end, error] = std::from_chars(index.data(), index.data() + index.size(), value);
+    if (index.empty() || error != std::errc() || end != index.data() + index.size()) {
+      fail("face corner '" + std::string(token) + "' does not start with a vertex index");
+    }
+    if (value == 0) fail("face corner '" + std::string(token) + "' has vertex index 0 (OBJ counts from 1)");
+    if (value < 0) {
+      if (-value > vertices_so_far) {
+        fail("face corner '" + std::string(token) + "' counts back " + std::to_string(-value) + " vertices, but only " +
+             std::to_string(vertices_so_far) + " are defined before it");
+      }
+      return vertices_so_far + value;
+    }
+    return value - 1;
+  }
+};
+
+}  // namespace
+
+TriangleMesh readObj(const std::string& path, const std::string& text, std::size_t* skipped_primitives) {
+  Reader reader{path};
+  std::vector<Eigen::Vector3d> positions;
+  // Faces as runs of corner indices into `positions`, kept until the whole file is read.
+  std::vector<std::int64_t> corners;
+  std::vector<std::size_t> face_ends;
+  std::vector<std::size_t> face_lines;
+  std::size_t skipped = 0;
+
+  std::string joined;  // a logical line continued over several physical ones (trailing '\')
+  std::size_t position = 0, physical_line = 0;
+  while (position < text.size()) {
+    reader.line_number = physical_line + 1;
+    std::string_view line;
+    joined.clear();
+    while (true) {
+      const std::size_t end = std::min(text.find('\n', position), text.size());
+      std::string_view piece(text.data() + position, end - position);
+      position = end + 1;
+      ++physical_line;
+      while (!piece.empty() && isSpace(piece.back())) piece.remove_suffix(1);
+      if (piece.empty() || piece.back() != '\\' || position >= text.size()) {
+        if (joined.empty()) {
+          line = piece;
+        } else {
+          joined.append(piece);
+          line = joined;
+        }
+        break;
+      }
+      joined.append(piece.substr(0, piece.size() - 1));
+      joined.push_back(' ');
+    }
+
+    Tokens tokens(line);
+    const std::string_view keyword = tokens.next();
+    if (keyword == "v") {
+      Eigen::Vector3d p;
+      for (int axis = 0; axis < 3; ++axis) {
+        const std::string_view token = tokens.next();
+        if (token.empty()) {
+          reader.fail("vertex " + std::to_string(positions.size() + 1) + " has " + std::to_string(axis) +
+                      " coordinates, needs 3");
+        }
+        p[axis] = reader.number(token, "coordinate");
+      }
+      positions.push_back(p);  // a w or a color after x y z is not geometry
+    } else if (keyword == "f" || keyword == "fo") {
+      std::size_t count = 0;
+      for (std::string_view token = tokens.next(); !token.empty(); token = tokens.next()) {
+        corners.push_back(reader.corner(token, std::int64_t(positions.size())));
+        ++count;
+      }
+      if (count < 3) reader.fail("a face needs at least 3 corners, this one has " + std::to_string(count));
+      face_ends.push_back(corners.size());
+      face_lines.push_back(reader.line_number);
+    } else if (keyword == "p" || keyword == "l") {
+      ++skipped;
+    }
+  }
+
+  MeshAssembler assembler;
+  std::vector<int> ids(positions.size(), -1);  // merged vertex of each position, on first use
+  std::vector<int> polygon;
+  std::size_t begin = 0;
+  for (std::size_t f = 0; f < face_ends.size(); ++f) {
+    polygon.clear();
+    for (std::size_t c = begin; c < face_ends[f]; ++c) {
+      const std::int64_t v = corners[c];
+      if (v >= std::int64_t(positions.size())) {
+        reader.line_number = face_lines[f];
+        reader.fail("a face refers to vertex " + std::to_string(v + 1) + ", but the file defines " +
+                    std::to_string(positions.size()) + " (index out of range)");
+      }
+      if (ids[std::size_t(v)] < 0) ids[std::size_t(v)] = assembler.vertexId(positions[std::size_t(v)]);
+      polygon.push_back(ids[std::size_t(v)]);
+    }
+    assembler.addPolygon(polygon);
+    begin = face_ends[f];
+  }
+  if (skipped_primitives != nullptr) *skipped_primitives = skipped;
+  return assembler.take();
+}
+
+}  // namespace cfl::detail

@@ -1136,11 +1136,20 @@ DistanceResult bruteForceDistance(const MeshModel& a, const Eigen::Isometry3d& X
                                   const Eigen::Isometry3d& X_WB) {
   const RigidTransform X_AB = relativePose(X_WA, X_WB);
   DistanceResult r;
-  double best = kInfinity;
+  double best = kInfinity;  // squared
   Eigen::Vector3d tb[3];
   for (std::size_t j = 0; j < b.corners.size(); ++j) {
     for (int n = 0; n < 3; ++n) tb[n] = X_AB.apply(b.corners[j][n]);
+    const Eigen::Vector3d center_b = X_AB.apply(b.spheres[j].head<3>());
+    const double radius_b = b.spheres[j][3];
     for (std::size_t i = 0; i < a.corners.size(); ++i) {
+      // A pair whose spheres are farther apart than the best distance cannot reach it: skipped, with a slack
+      // for the rounding of the centers' placement and gap far above it. Only strictly farther pairs are
+      // skipped, so the answer (and, among ties, its pair) is what the full loop gives.
+      const Eigen::Vector4d& sphere_a = a.spheres[i];
+      const double reach = std::sqrt(best) + sphere_a[3] + radius_b;
+      const double slack = 1e-12 * (reach + center_b.cwiseAbs().sum() + sphere_a.head<3>().cwiseAbs().sum());
+      if ((center_b - sphere_a.head<3>()).norm() > reach + slack) continue;
       Eigen::Vector3d p, q;
       ++r.counters.triangle_pairs;
       const double squared = triangleTriangleSquaredDistance(a.corners[i].data(), tb, &p, &q);

@@ -175,9 +175,10 @@ void checkReferenceWithPoints(const DistanceResult& truth, const Shape& a, const
 
 // A pose of B relative to A with the given separation, as a fraction of A's diagonal:
 // 0 overlaps, a negative fraction means "touching" (closest points brought together exactly).
-Pose makePose(const Shape& a, const Shape& b, double fraction, test::Rng& rng) {
+// `translation_range`: how far from the world origin A may sit (test::randomPose).
+Pose makePose(const Shape& a, const Shape& b, double fraction, test::Rng& rng, double translation_range = 2.0) {
   Pose pose;
-  pose.X_WA = test::randomPose(rng, 2.0);
+  pose.X_WA = test::randomPose(rng, translation_range);
   auto distance = [&](const Eigen::Isometry3d& X_WB) { return computeDistance(a.cfl, pose.X_WA, b.model, X_WB).distance; };
   const Eigen::Vector3d center_a = pose.X_WA * a.model.bounds.center();
   if (fraction < 0) {
@@ -391,6 +392,34 @@ TEST(ComputeDistance, PosesFarFromTheWorldOriginStayExact) {
         options.mode = mode;
         checkResult(computeDistance(a.cfl, pose.X_WA, b.model, pose.X_WB, options), truth, a, b, pose, "far", failures);
         checkResult(computeDistance(a.cfl, pose.X_WA, b.cfl, pose.X_WB, options), truth, a, b, pose, "far, CflModel B",
+                    failures);
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+}
+
+TEST(ComputeDistance, MeshesInAnyUnitStayExact) {
+  // The same shapes in units a million times smaller and larger (a part in metres with micrometre detail,
+  // a building in millimetres): no absolute threshold may creep into the bounds or the kernels. FCL 0.7's
+  // triangle distance has one (1e-15 on a squared cross product) and misses vertex-face contacts of
+  // triangles with edges under about 2e-4 units.
+  test::Rng rng(77);
+  Failures failures;
+  for (const double scale : {1e-6, 1e-3, 1e3, 1e6}) {
+    auto scaled = [&](const std::string& name, TriangleMesh mesh) {
+      for (auto& v : mesh.vertices) v *= scale;
+      return makeShape(name + " x" + std::to_string(scale), std::move(mesh), 12);
+    };
+    const auto a = scaled("knot", test::makeTorusKnot(2, 3, 0.5, 0.3, 30, 4));
+    const auto b = scaled("messy", test::makeMessyMesh(10, 6));
+    for (double fraction : {-1.0, 0.005, 0.02, 0.5}) {
+      for (int n = 0; n < 3; ++n) {
+        const Pose pose = makePose(*a, *b, fraction, rng, 2.0 * scale);
+        const DistanceResult truth = bruteForceDistance(a->model, pose.X_WA, b->model, pose.X_WB);
+        checkReferenceWithPoints(truth, *a, *b, pose, failures);
+        checkResult(computeDistance(a->cfl, pose.X_WA, b->model, pose.X_WB), truth, *a, *b, pose, "scaled", failures);
+        checkResult(computeDistance(a->cfl, pose.X_WA, b->cfl, pose.X_WB), truth, *a, *b, pose, "scaled, CflModel B",
                     failures);
       }
     }

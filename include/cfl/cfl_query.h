@@ -145,7 +145,10 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
 DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA, const CflModel& b,
                                const Eigen::Isometry3d& X_WB, const DistanceOptions& options = {});
 
-/// Reference answer by brute force over all triangle pairs. O(|A| |B|); for tests and checks.
+/// Reference answer by brute force over all triangle pairs, for tests and checks: no voxel, list or Bvh,
+/// only the exact triangle distance and each triangle's bounding sphere (MeshModel::spheres), which skips a
+/// pair whose spheres are farther apart than the best distance so far (the answer and its pair are those of
+/// the full loop). O(|A| |B|): the bunny against itself, 13.5 million pairs, in tens of milliseconds.
 DistanceResult bruteForceDistance(const MeshModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
                                   const Eigen::Isometry3d& X_WB);
 

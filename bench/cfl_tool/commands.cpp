@@ -6,6 +6,7 @@
 #include "cfl/mesh_io.h"
 #include "fcl_baseline.h"
 #include "pose_file.h"
+#include "referee.h"
 #include "tool_args.h"
 #include "tool_support.h"
 
@@ -13,6 +14,7 @@
 #include <cmath>
 #include <fstream>
 #include <iostream>
+#include <memory>
 
 namespace cfl::tool {
 namespace {
@@ -43,8 +45,10 @@ missing or '-'). A may be a .cfl file written by 'cfl build -o'. Prints CSV to s
 pose is the 0-based index of the pose in FILE; (ax,ay,az) and (bx,by,bz) the closest points on A and B in
 the world frame; tri_a/tri_b their triangle ids (order of triangles in the file after triangulation); micros
 the wall time of that query. With --method both each pose gets a 'cfl' row then an 'obbrss' row and a
-trailing 'method' column; the run fails (status 1) if they differ by more than 1e-9 of the larger bounding-box
-diagonal.
+trailing 'method' column; where the two differ by more than 1e-9 of the larger bounding-box diagonal, brute
+force over all triangle pairs decides, and the run fails (status 1) if CFL is off by more than that (a note
+counts the poses where OBBRSS is: FCL 0.7 misses vertex-face contacts of triangles with edges under about
+2e-4 units).
 
 Pose file: one pose per line, 12 numbers separated by spaces or commas, the row-major 3x4 matrix [R | t] of
 B's pose. '#' starts a comment; blank lines are skipped. A malformed line is an error naming its number.
@@ -166,7 +170,10 @@ int runDistance(const std::vector<std::string>& raw, Streams io) {
   const Eigen::Isometry3d X_WA = Eigen::Isometry3d::Identity();
 
   io.out << kDistanceCsvHeader << (method == "both" ? ",method" : "") << '\n';
-  double worst = 0;
+  const double tolerance = 1e-9 * diagonal;
+  std::unique_ptr<Referee> referee;
+  if (use_cfl && use_fcl) referee = std::make_unique<Referee>(model_a.geometry, model_b, tolerance);
+  double worst = 0;  // CFL's largest difference from the reference
   long worst_pose = -1;
   for (std::size_t i = 0; i < poses.size(); ++i) {
     const Eigen::Isometry3d& X_WB = poses[i];
@@ -187,8 +194,9 @@ int runDistance(const std::vector<std::string>& raw, Streams io) {
                  std::chrono::duration<double, std::micro>(stop - start).count(), method == "both" ? "obbrss" : ""};
       io.out << formatDistanceRow(fcl_row) << '\n';
     }
-    if (use_cfl && use_fcl) {
-      const double difference = std::abs(cfl_row.distance - fcl_row.distance);
+    if (referee) {
+      const double reference = referee->reference(X_WB, fcl_row.distance, {cfl_row.distance});
+      const double difference = std::abs(cfl_row.distance - reference);
       if (!(difference <= worst)) {
         worst = difference;
         worst_pose = long(i);
@@ -196,9 +204,15 @@ int runDistance(const std::vector<std::string>& raw, Streams io) {
     }
   }
   io.out.flush();
-  if (method == "both" && worst_pose >= 0 && !(worst <= 1e-9 * diagonal)) {
-    io.err << format("cfl distance: FAILED: CFL and OBBRSS differ by %.3g (%.3g of the diagonal %g) at pose %ld; "
-                     "allowed: 1e-9 of the diagonal\n",
+  if (referee && referee->fclErrors() > 0) {
+    io.err << format("cfl distance: note: OBBRSS was off on %d of %zu poses, by up to %.3g (%.3g of the diagonal); "
+                     "brute force over all triangle pairs sided with CFL there\n",
+                     referee->fclErrors(), poses.size(), referee->largestFclError(),
+                     referee->largestFclError() / diagonal);
+  }
+  if (referee && worst_pose >= 0 && !(worst <= tolerance)) {
+    io.err << format("cfl distance: FAILED: CFL differs from the reference (OBBRSS, or brute force where the two "
+                     "disagree) by %.3g (%.3g of the diagonal %g) at pose %ld; allowed: 1e-9 of the diagonal\n",
                      worst, worst / diagonal, diagonal, worst_pose);
     return 1;
   }

@@ -239,6 +239,29 @@ TEST_F(ToolCliTest, DistanceBothMethodsAgreeWithEachOtherAndWithBruteForce) {
   for (std::size_t i = 0; i < poses.size(); ++i) EXPECT_EQ(piped_rows[i].distance, rows[2 * i].distance) << i;
 }
 
+
+TEST_F(ToolCliTest, DistanceBothMethodsLetBruteForceSettleWhereFclIsOff) {
+  // A triangle with 1e-4 edges and a sliver 1e-5 above its interior: FCL 0.7's triangle distance drops the
+  // vertex-face case below its absolute threshold and answers 0. The check must then ask brute force, side
+  // with CFL, say so, and pass.
+  TriangleMesh a, b;
+  a.vertices = {{0, 0, 0}, {1e-4, 0, 0}, {0, 1e-4, 0}};
+  a.triangles = {{0, 1, 2}};
+  b.vertices = {{2.5e-5, 2.5e-5, 1e-5}, {3e-5, 2.5e-5, 1.1e-4}, {2.5e-5, 3e-5, 1.1e-4}};
+  b.triangles = {{0, 1, 2}};
+  const std::string path_a = writeMesh("tiny_a.obj", a), path_b = writeMesh("tiny_b.obj", b);
+  writeFile(path("identity.txt"), "1 0 0 0  0 1 0 0  0 0 1 0\n");
+  const ToolRun r = run({"distance", path_a, path_b, "--poses", path("identity.txt"), "--method", "both"});
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::istringstream csv(r.out);
+  const std::vector<tool::DistanceRow> rows = tool::readDistanceCsv(csv, "stdout");
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_NEAR(rows[0].distance, 1e-5, 1e-18);
+  // Only while FCL keeps the defect: an FCL that gets this right needs no note.
+  if (std::abs(rows[1].distance - 1e-5) > 1e-18) {
+    EXPECT_TRUE(contains(r.err, "OBBRSS was off on 1 of 1 poses")) << r.err;
+  }
+}
 TEST_F(ToolCliTest, BuildSavesAModelThatInfoReadsBack) {
   const std::string mesh = writeMesh("knot.obj", test::makeTorusKnot(2, 3, 1.0, 0.3, 32, 5));
   const ToolRun build = run({"build", mesh, "-o", path("knot.cfl"), "--resolution", "10"});

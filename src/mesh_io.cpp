@@ -3,6 +3,7 @@
 #include "cfl/error.h"
 #include "detail/mesh_assembly.h"
 #include "detail/obj_reader.h"
+#include "detail/stl_reader.h"
 
 #include <Eigen/Geometry>
 #include <assimp/Importer.hpp>
@@ -148,13 +149,25 @@ TriangleMesh checked(const std::string& path, TriangleMesh mesh, const std::stri
   return mesh;
 }
 
-TriangleMesh loadObj(const std::string& path) {
+std::string readFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   if (in.bad()) fail(path, std::string("read error: ") + std::strerror(errno));
+  return text;
+}
+
+TriangleMesh loadObj(const std::string& path) {
   std::size_t skipped = 0;
-  TriangleMesh mesh = detail::readObj(path, text, &skipped);
+  TriangleMesh mesh = detail::readObj(path, readFile(path), &skipped);
   return checked(path, std::move(mesh), std::to_string(skipped) + " point or line primitives");
+}
+
+bool isAsciiStlFile(const std::string& path, std::uint64_t file_size) {
+  std::ifstream in(path, std::ios::binary);
+  std::string head(256, '\0');
+  in.read(head.data(), std::streamsize(head.size()));
+  head.resize(std::size_t(in.gcount()));
+  return detail::isAsciiStl(head, file_size);
 }
 
 }  // namespace
@@ -170,6 +183,9 @@ TriangleMesh loadMesh(const std::string& path) {
   }
   if (info.st_size == 0) fail(path, "the file is empty");
   if (hasExtension(path, "obj")) return loadObj(path);
+  if (hasExtension(path, "stl") && isAsciiStlFile(path, std::uint64_t(info.st_size))) {
+    return checked(path, detail::readAsciiStl(path, readFile(path)), "no facet");
+  }
   if (hasExtension(path, "off")) checkOffHeader(path, info.st_size);
 
   Assimp::Importer importer;

@@ -2,36 +2,16 @@
 
 #include "cfl/error.h"
 #include "detail/mesh_assembly.h"
+#include "detail/text_mesh_parsing.h"
 
 #include <algorithm>
 #include <charconv>
-#include <cmath>
 #include <cstdint>
 #include <string_view>
 #include <vector>
 
 namespace cfl::detail {
 namespace {
-
-bool isSpace(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
-
-// The whitespace-separated tokens of one logical line, up to a '#' that starts a token (a comment).
-class Tokens {
- public:
-  explicit Tokens(std::string_view line) : line_(line) {}
-  // The next token, or an empty view at the end.
-  std::string_view next() {
-    while (position_ < line_.size() && isSpace(line_[position_])) ++position_;
-    const std::size_t begin = position_;
-    if (begin < line_.size() && line_[begin] == '#') position_ = line_.size();
-    while (position_ < line_.size() && !isSpace(line_[position_])) ++position_;
-    return line_.substr(begin, position_ - begin);
-  }
-
- private:
-  std::string_view line_;
-  std::size_t position_ = 0;
-};
 
 struct Reader {
   const std::string& path;
@@ -42,23 +22,9 @@ struct Reader {
   }
 
   double number(std::string_view token, const char* what) const {
-    std::string_view digits = token;
-    if (!digits.empty() && digits[0] == '+') digits.remove_prefix(1);  // from_chars takes no '+'
     double value = 0;
-    const auto [end, error] = std::from_chars(digits.data(), digits.data() + digits.size(), value);
-    if (digits.empty() || error == std::errc::invalid_argument || end != digits.data() + digits.size()) {
-      fail(std::string(what) + " '" + std::string(token) + "' is not a number");
-    }
-    if (error == std::errc::result_out_of_range) {
-      // Below the smallest double (a negative exponent) the nearest double is 0, harmless to any query;
-      // beyond the largest there is none. from_chars leaves `value` unset in both cases.
-      const std::size_t exponent = digits.find_first_of("eE");
-      if (exponent == std::string_view::npos || exponent + 1 >= digits.size() || digits[exponent + 1] != '-') {
-        fail(std::string(what) + " '" + std::string(token) + "' is beyond the double range");
-      }
-      value = 0;
-    }
-    if (!std::isfinite(value)) fail(std::string(what) + " '" + std::string(token) + "' is not finite");
+    std::string problem;
+    if (!parseCoordinate(token, &value, &problem)) fail(std::string(what) + " " + problem);
     return value;
   }
 
@@ -106,7 +72,7 @@ TriangleMesh readObj(const std::string& path, const std::string& text, std::size
       std::string_view piece(text.data() + position, end - position);
       position = end + 1;
       ++physical_line;
-      while (!piece.empty() && isSpace(piece.back())) piece.remove_suffix(1);
+      while (!piece.empty() && isTokenSpace(piece.back())) piece.remove_suffix(1);
       if (piece.empty() || piece.back() != '\\' || position >= text.size()) {
         if (joined.empty()) {
           line = piece;
@@ -120,7 +86,7 @@ TriangleMesh readObj(const std::string& path, const std::string& text, std::size
       joined.push_back(' ');
     }
 
-    Tokens tokens(line);
+    LineTokens tokens(line);
     const std::string_view keyword = tokens.next();
     if (keyword == "v") {
       Eigen::Vector3d p;

@@ -189,7 +189,7 @@ TEST_F(MeshIoTest, BundledBunnyLoadsWithItsTriangleCount) {
   }
 }
 
-TEST_F(MeshIoTest, ObjCoordinatesKeepEveryBitOfTheirDoubles) {
+TEST_F(MeshIoTest, ObjAndAsciiStlCoordinatesKeepEveryBitOfTheirDoubles) {
   // Coordinates a float cannot hold (a part 1000 units from the origin with micrometre detail, a mesh of
   // 1e-7 units), written with 17 significant digits: the distances are exact only if these survive.
   test::Rng rng(11);
@@ -204,21 +204,71 @@ TEST_F(MeshIoTest, ObjCoordinatesKeepEveryBitOfTheirDoubles) {
       mesh.triangles.push_back({first, first + 1, first + 2});
     }
   }
-  std::string text;
   char buffer[100];
-  for (const auto& v : mesh.vertices) {
-    std::snprintf(buffer, sizeof buffer, "v %.17g %.17g %.17g\n", v.x(), v.y(), v.z());
-    text += buffer;
+  auto coordinates = [&](const Eigen::Vector3d& v) {
+    std::snprintf(buffer, sizeof buffer, "%.17g %.17g %.17g", v.x(), v.y(), v.z());
+    return std::string(buffer);
+  };
+  std::string obj, stl = "solid precise\n";
+  for (const auto& v : mesh.vertices) obj += "v " + coordinates(v) + "\n";
+  for (const auto& t : mesh.triangles) {
+    obj += "f " + std::to_string(t[0] + 1) + " " + std::to_string(t[1] + 1) + " " + std::to_string(t[2] + 1) + "\n";
+    stl += "facet normal 0 0 1\nouter loop\n";
+    for (int c = 0; c < 3; ++c) stl += "vertex " + coordinates(mesh.vertices[std::size_t(t[c])]) + "\n";
+    stl += "endloop\nendfacet\n";
   }
-  for (const auto& t : mesh.triangles) text += "f " + std::to_string(t[0] + 1) + " " + std::to_string(t[1] + 1) + " " + std::to_string(t[2] + 1) + "\n";
-  writeText(path("precise.obj"), text);
-  const TriangleMesh loaded = loadMesh(path("precise.obj"));
-  ASSERT_EQ(loaded.triangles.size(), mesh.triangles.size());
-  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
-    for (int c = 0; c < 3; ++c) {
-      ASSERT_EQ(loaded.vertices[std::size_t(loaded.triangles[t][c])], mesh.vertices[std::size_t(mesh.triangles[t][c])])
-          << "corner " << c << " of triangle " << t;
+  stl += "endsolid precise\n";
+  writeText(path("precise.obj"), obj);
+  writeText(path("precise.stl"), stl);
+  for (const char* name : {"precise.obj", "precise.stl"}) {
+    const TriangleMesh loaded = loadMesh(path(name));
+    ASSERT_EQ(loaded.triangles.size(), mesh.triangles.size()) << name;
+    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+      for (int c = 0; c < 3; ++c) {
+        ASSERT_EQ(loaded.vertices[std::size_t(loaded.triangles[t][c])], mesh.vertices[std::size_t(mesh.triangles[t][c])])
+            << name << ": corner " << c << " of triangle " << t;
+      }
     }
+  }
+}
+
+TEST_F(MeshIoTest, AsciiStlKeywordsSolidsAndPolygonLoopsAreRead) {
+  // Upper-case keywords, two solids, a loop of four vertices (two triangles), and a binary file whose
+  // 80-byte header starts with "solid", which is still binary by its size.
+  writeText(path("two.stl"),
+            "SOLID first\n  FACET NORMAL 0 0 1\n    OUTER LOOP\n      VERTEX 0 0 0\n      VERTEX 1 0 0\n"
+            "      VERTEX 0 1 0\n    ENDLOOP\n  ENDFACET\nENDSOLID first\n\n"
+            "solid second\nfacet normal 0 0 1\nouter loop\nvertex 0 0 5\nvertex 2 0 5\nvertex 2 1 5\nvertex 0 1 5\n"
+            "endloop\nendfacet\nendsolid second\n");
+  const TriangleMesh m = loadMesh(path("two.stl"));
+  ASSERT_EQ(m.triangles.size(), 3u);
+  for (int c = 0; c < 3; ++c) EXPECT_EQ(m.vertices[std::size_t(m.triangles[0][c])].z(), 0.0);
+  for (std::size_t t : {1u, 2u}) {
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(m.vertices[std::size_t(m.triangles[t][c])].z(), 5.0);
+  }
+  const TriangleMesh torus = roundToFloat(test::makeTorus(1.0, 0.35, 12, 8));
+  std::string binary = stlBinary(torus);
+  binary.replace(0, 11, "solid torus");
+  writeText(path("solid_header.stl"), binary);
+  expectSameTrianglesInOrder(torus, loadMesh(path("solid_header.stl")), "solid_header.stl");
+}
+
+TEST_F(MeshIoTest, AsciiStlErrorsNameTheLine) {
+  const std::string head = "solid s\nfacet normal 0 0 1\nouter loop\n";  // lines 1-3
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {head + "vertex 0 0 0\nvertex 1 y 0\n", "line 5: coordinate 'y' is not a number"},
+      {head + "vertex 0 0\n", "line 4: a vertex has 2 coordinates, needs 3"},
+      {head + "vertex 0 0 0\nvertex 1 0 0\nendloop\n", "line 6: a facet's loop has 2 vertices, needs 3"},
+      {"solid s\nvertex 0 0 0\n", "line 2: a vertex outside an 'outer loop'"},
+      {head + "vertex 0 0 0\nbanana\n", "line 5: 'banana' is not an ASCII STL statement"},
+      {head + "vertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n", "ends inside a facet's loop"},
+      {head + "vertex 0 0 inf\n", "line 4: coordinate 'inf' is not finite"},
+  };
+  int n = 0;
+  for (const auto& [text, reason] : cases) {
+    const std::string file = path("bad" + std::to_string(n++) + ".stl");
+    writeText(file, text);
+    expectErrorNaming(file, reason);
   }
 }
 

@@ -1,11 +1,10 @@
-// libFuzzer target for the mesh loader (cfl::loadMesh, assimp underneath) fed OBJ text.
+// libFuzzer target for the mesh loader's native text readers (cfl::loadMesh): OBJ, and ASCII STL for inputs
+// that start with "solid".
 //
-// loadMesh reads files, so each input is written to a per-process temporary .obj file first. The loader
+// loadMesh reads files, so each input is written to a per-process temporary .obj or .stl file first. The loader
 // must throw cfl::Error or return a mesh that passes validateMesh (its documented promise); small meshes are
 // then pushed through the whole pipeline (CFL build at a coarse resolution and a distance query), where odd
 // but valid geometry (degenerate, huge or tiny coordinates) must also end in a result or a cfl::Error.
-// Note: assimp is the system library, not instrumented, so ASan sees its memory errors only where they
-// reach our code or crash.
 
 #include "cfl/cfl_model.h"
 #include "cfl/cfl_query.h"
@@ -17,23 +16,25 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <string>
 #include <unistd.h>
 
 namespace {
 
-const std::string& temporaryPath() {
-  static const std::string path = [] {
+std::string temporaryPath(const char* extension) {
+  static const std::string stem = [] {
     const char* directory = access("/dev/shm", W_OK) == 0 ? "/dev/shm" : "/tmp";
-    return std::string(directory) + "/cfl_mesh_fuzz_" + std::to_string(getpid()) + ".obj";
+    return std::string(directory) + "/cfl_mesh_fuzz_" + std::to_string(getpid());
   }();
-  return path;
+  return stem + extension;
 }
 
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  const std::string& path = temporaryPath();
+  const bool stl = size >= 5 && std::memcmp(data, "solid", 5) == 0;
+  const std::string path = temporaryPath(stl ? ".stl" : ".obj");
   if (std::FILE* file = std::fopen(path.c_str(), "wb")) {
     if (size > 0) std::fwrite(data, 1, size, file);
     std::fclose(file);

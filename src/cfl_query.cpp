@@ -56,7 +56,16 @@ RigidTransform relativePose(const Eigen::Isometry3d& X_WA, const Eigen::Isometry
   validatePose(X_WA, "pose of A");
   validatePose(X_WB, "pose of B");
   const Eigen::Matrix3d R_AW = X_WA.linear().transpose();
-  return {R_AW * X_WB.linear(), R_AW * (X_WB.translation() - X_WA.translation())};
+  const RigidTransform X_AB{R_AW * X_WB.linear(), R_AW * (X_WB.translation() - X_WA.translation())};
+  // B's vertices in A's frame must stay within validateMesh's range, or squared distances overflow and the
+  // answer would come out infinite.
+  if (!(X_AB.translation.cwiseAbs().maxCoeff() <= kMaxCoordinate)) {
+    std::ostringstream message;
+    message << "B's origin lies at (" << X_AB.translation.transpose() << ") in A's frame, beyond " << kMaxCoordinate
+            << " in magnitude: the distance would overflow double arithmetic";
+    throw Error(message.str());
+  }
+  return X_AB;
 }
 
 // Voxel index range of `grid` covering the box [lo, hi] (clamped to the grid).

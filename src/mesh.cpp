@@ -18,6 +18,12 @@ void validateMesh(const TriangleMesh& mesh) {
       message << "vertex " << v << " has a non-finite coordinate (" << p.x() << ", " << p.y() << ", " << p.z() << ")";
       throw Error(message.str());
     }
+    if (!(p.cwiseAbs().maxCoeff() <= kMaxCoordinate)) {
+      std::ostringstream message;
+      message << "vertex " << v << " has a coordinate beyond " << kMaxCoordinate << " in magnitude (" << p.x() << ", "
+              << p.y() << ", " << p.z() << "): the squared distances and products the queries take would overflow";
+      throw Error(message.str());
+    }
   }
   const long long vertex_count = static_cast<long long>(mesh.vertices.size());
   for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {

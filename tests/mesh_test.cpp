@@ -97,6 +97,20 @@ TEST(MeshValidation, NonFiniteUnusedVertexIsRejected) {
   expectEveryEntryPointRejects(mesh, {"vertex 9"});
 }
 
+TEST(MeshValidation, CoordinatesBeyondTheSupportedRangeAreRejected) {
+  // 2e302 is finite, but its square is not: accepted, it sent the builder's grid arithmetic to NaN and a
+  // negative index (found by the OBJ fuzzer once the reader kept doubles).
+  TriangleMesh mesh = smallMesh();
+  mesh.vertices[5].y() = -2e302;
+  expectEveryEntryPointRejects(mesh, {"vertex 5", "beyond"});
+  mesh = smallMesh();
+  mesh.vertices[2].z() = 1.01 * kMaxCoordinate;
+  expectEveryEntryPointRejects(mesh, {"vertex 2", "beyond"});
+  mesh = smallMesh();
+  mesh.vertices[2].z() = kMaxCoordinate;  // the limit itself is allowed
+  EXPECT_NO_THROW(validateMesh(mesh));
+}
+
 TEST(MeshValidation, OutOfRangeIndexIsRejectedNamingTriangleAndIndex) {
   TriangleMesh mesh = smallMesh();
   mesh.triangles[11][2] = 900;
@@ -280,6 +294,15 @@ TEST(PoseValidation, DistanceQueryRejectsBadPoses) {
   errorMessage([&] { computeDistance(a, bad, b, Eigen::Isometry3d::Identity()); });
   errorMessage([&] { computeDistance(a, Eigen::Isometry3d::Identity(), b, bad); });
   errorMessage([&] { computeDistance(a, Eigen::Isometry3d::Identity(), a, bad); });
+  // Finite, rigid, but B so far from A that squared distances overflow (the answer came out infinite).
+  Eigen::Isometry3d far = Eigen::Isometry3d::Identity();
+  far.translation() = Eigen::Vector3d(1e155, 0, 0);
+  const std::string message = errorMessage([&] { computeDistance(a, Eigen::Isometry3d::Identity(), b, far); });
+  EXPECT_NE(message.find("in a's frame, beyond"), std::string::npos) << message;
+  // Both far from the world origin but near each other is fine.
+  Eigen::Isometry3d near_far = far;
+  near_far.translation().y() = 3;
+  EXPECT_NO_THROW(computeDistance(a, far, b, near_far));
 }
 
 }  // namespace

@@ -40,10 +40,16 @@ struct TriangleMesh {
   std::vector<std::array<int, 3>> triangles;  ///< Three indices into `vertices` per triangle.
 };
 
-/// Checks that `mesh` can be used: at least one triangle, every vertex coordinate finite, every index in
-/// [0, vertices.size()). Throws cfl::Error naming the first defect, e.g. "triangle 12: vertex index 900 is
-/// out of range [0, 512)" or "vertex 3 has a non-finite coordinate (nan, 0, 1)". Degenerate and duplicate
-/// triangles are accepted: they are valid geometry (a segment or a point). O(vertices + triangles).
+/// The largest vertex coordinate magnitude validateMesh accepts. The distance kernels take products of up
+/// to four coordinate differences (a triangle normal's squared length); beyond this they could overflow
+/// the double range, which reaches 1.8e308.
+constexpr double kMaxCoordinate = 1e50;
+
+/// Checks that `mesh` can be used: at least one triangle, every vertex coordinate finite and at most
+/// kMaxCoordinate in magnitude, every index in [0, vertices.size()). Throws cfl::Error naming the first
+/// defect, e.g. "triangle 12: vertex index 900 is out of range [0, 512)" or "vertex 3 has a non-finite
+/// coordinate (nan, 0, 1)". Degenerate and duplicate triangles are accepted: they are valid geometry (a
+/// segment or a point). O(vertices + triangles).
 void validateMesh(const TriangleMesh& mesh);
 
 /// The bounding box of the vertices that triangles use, in the mesh frame. O(triangles).

@@ -42,7 +42,9 @@ struct TriangleMesh {
 
 /// The largest vertex coordinate magnitude validateMesh accepts. The distance kernels take products of up
 /// to four coordinate differences (a triangle normal's squared length); beyond this they could overflow
-/// the double range, which reaches 1.8e308.
+/// the double range, which reaches 1.8e308. At the other end the same products underflow for triangles
+/// with edges under about 1e-75 units, which are then measured as their edges (off by up to their size):
+/// no physical unit comes near either end (tests cover meshes scaled by 1e-6 to 1e6).
 constexpr double kMaxCoordinate = 1e50;
 
 /// Checks that `mesh` can be used: at least one triangle, every vertex coordinate finite and at most

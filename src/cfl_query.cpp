@@ -1146,6 +1146,7 @@ DistanceResult bruteForceDistance(const MeshModel& a, const Eigen::Isometry3d& X
   const RigidTransform X_AB = relativePose(X_WA, X_WB);
   DistanceResult r;
   double best = kInfinity;  // squared
+  double best_distance = kInfinity;
   Eigen::Vector3d tb[3];
   for (std::size_t j = 0; j < b.corners.size(); ++j) {
     for (int n = 0; n < 3; ++n) tb[n] = X_AB.apply(b.corners[j][n]);
@@ -1156,7 +1157,7 @@ DistanceResult bruteForceDistance(const MeshModel& a, const Eigen::Isometry3d& X
       // for the rounding of the centers' placement and gap far above it. Only strictly farther pairs are
       // skipped, so the answer (and, among ties, its pair) is what the full loop gives.
       const Eigen::Vector4d& sphere_a = a.spheres[i];
-      const double reach = std::sqrt(best) + sphere_a[3] + radius_b;
+      const double reach = best_distance + sphere_a[3] + radius_b;
       const double slack = 1e-12 * (reach + center_b.cwiseAbs().sum() + sphere_a.head<3>().cwiseAbs().sum());
       if ((center_b - sphere_a.head<3>()).norm() > reach + slack) continue;
       Eigen::Vector3d p, q;
@@ -1164,6 +1165,7 @@ DistanceResult bruteForceDistance(const MeshModel& a, const Eigen::Isometry3d& X
       const double squared = triangleTriangleSquaredDistance(a.corners[i].data(), tb, &p, &q);
       if (squared < best) {
         best = squared;
+        best_distance = std::sqrt(squared);
         r.triangle_a = int(i);
         r.triangle_b = int(j);
         r.point_a = p;

@@ -9,7 +9,6 @@
 #include <assimp/Importer.hpp>
 #include <assimp/scene.h>
 
-#include <array>
 #include <cctype>
 #include <cerrno>
 #include <cstdint>
@@ -19,7 +18,6 @@
 #include <limits>
 #include <string>
 #include <sys/stat.h>
-#include <unordered_map>
 #include <vector>
 
 namespace cfl {

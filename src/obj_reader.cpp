@@ -35,14 +35,17 @@ struct Reader {
     const std::string_view index = token.substr(0, token.find('/'));
     std::int64_t value = 0;
     const auto [end, error] = std::from_chars(index.data(), index.data() + index.size(), value);
-    if (index.empty() || error != std::errc() || end != index.data() + index.size()) {
+    if (index.empty() || error == std::errc::invalid_argument || end != index.data() + index.size()) {
       fail("face corner '" + std::string(token) + "' does not start with a vertex index");
+    }
+    if (error == std::errc::result_out_of_range) {
+      fail("face corner '" + std::string(token) + "' has a vertex index beyond any vertex count");
     }
     if (value == 0) fail("face corner '" + std::string(token) + "' has vertex index 0 (OBJ counts from 1)");
     if (value < 0) {
-      if (-value > vertices_so_far) {
-        fail("face corner '" + std::string(token) + "' counts back " + std::to_string(-value) + " vertices, but only " +
-             std::to_string(vertices_so_far) + " are defined before it");
+      if (value < -vertices_so_far) {  // not -value, which overflows for the smallest int64
+        fail("face corner '" + std::string(token) + "' counts back further than the " + std::to_string(vertices_so_far) +
+             " vertices defined before it");
       }
       return vertices_so_far + value;
     }

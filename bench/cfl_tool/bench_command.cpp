@@ -303,7 +303,7 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
   for (const BandReport& r : reports) {
     if (r.fcl_errors == 0) continue;
     io.out << format("note: band %g: FCL OBBRSS was off on %d of %d poses, by up to %.3g of the diagonal; brute "
-                     "force over all triangle pairs sided with CFL there\n",
+                     "force over all triangle pairs gave those poses' reference\n",
                      r.band, r.fcl_errors, queries, r.largest_fcl_error / diagonal);
   }
 

@@ -46,7 +46,7 @@ double maxDifference(const std::vector<double>& answers, const std::vector<doubl
 void noteFclErrors(const Referee& referee, std::size_t poses, double diagonal, std::ostream& out) {
   if (referee.fclErrors() == 0) return;
   out << format("note: FCL OBBRSS was off on %d of %zu poses, by up to %.3g of the diagonal; brute force over all "
-                "triangle pairs sided with CFL there\n",
+                "triangle pairs gave those poses' reference\n",
                 referee.fclErrors(), poses, referee.largestFclError() / diagonal);
 }
 

@@ -206,7 +206,7 @@ int runDistance(const std::vector<std::string>& raw, Streams io) {
   io.out.flush();
   if (referee && referee->fclErrors() > 0) {
     io.err << format("cfl distance: note: OBBRSS was off on %d of %zu poses, by up to %.3g (%.3g of the diagonal); "
-                     "brute force over all triangle pairs sided with CFL there\n",
+                     "brute force over all triangle pairs gave those poses' reference\n",
                      referee->fclErrors(), poses.size(), referee->largestFclError(),
                      referee->largestFclError() / diagonal);
   }

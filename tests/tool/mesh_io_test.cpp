@@ -123,6 +123,18 @@ void expectSameTrianglesInOrder(const TriangleMesh& expected, const TriangleMesh
   EXPECT_NO_THROW(validateMesh(loaded)) << what;
 }
 
+// Every refusal is a cfl::Error whose message starts with the path and contains the reason.
+void expectErrorNaming(const std::string& file, const std::string& reason) {
+  try {
+    loadMesh(file);
+    FAIL() << "loading " << file << " did not throw";
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    EXPECT_EQ(message.rfind(file, 0), 0u) << message;
+    EXPECT_NE(message.find(reason), std::string::npos) << message;
+  }
+}
+
 class MeshIoTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -148,20 +160,20 @@ class MeshIoTest : public ::testing::Test {
     }
   }
 
+  // Writes each (file text, expected reason) case to its own file with `extension` and expects loadMesh to
+  // refuse it naming the file and the reason.
+  void expectEachRefused(const std::vector<std::pair<std::string, std::string>>& cases, const std::string& extension) {
+    int n = 0;
+    for (const auto& [text, reason] : cases) {
+      const std::string file = path("bad" + std::to_string(n++) + extension);
+      writeText(file, text);
+      expectErrorNaming(file, reason);
+    }
+  }
+
   std::string dir_;
 };
 
-// Every refusal is a cfl::Error whose message starts with the path and contains the reason.
-void expectErrorNaming(const std::string& file, const std::string& reason) {
-  try {
-    loadMesh(file);
-    FAIL() << "loading " << file << " did not throw";
-  } catch (const Error& e) {
-    const std::string message = e.what();
-    EXPECT_EQ(message.rfind(file, 0), 0u) << message;
-    EXPECT_NE(message.find(reason), std::string::npos) << message;
-  }
-}
 
 TEST_F(MeshIoTest, EveryFormatRoundTripsTrianglesInFileOrder) {
   expectRoundTripInEveryFormat(test::makeTorus(1.0, 0.35, 12, 8), "torus");
@@ -264,12 +276,7 @@ TEST_F(MeshIoTest, AsciiStlErrorsNameTheLine) {
       {head + "vertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n", "ends inside a facet's loop"},
       {head + "vertex 0 0 inf\n", "line 4: coordinate 'inf' is not finite"},
   };
-  int n = 0;
-  for (const auto& [text, reason] : cases) {
-    const std::string file = path("bad" + std::to_string(n++) + ".stl");
-    writeText(file, text);
-    expectErrorNaming(file, reason);
-  }
+  expectEachRefused(cases, ".stl");
 }
 
 TEST_F(MeshIoTest, ObjFaceFormsCommentsAndContinuationsAreRead) {
@@ -304,12 +311,7 @@ TEST_F(MeshIoTest, ObjErrorsNameTheLine) {
       {head + "f 1 2 a\n", "line 4: face corner 'a' does not start with a vertex index"},
       {head + "# c\nf 1 2 3\nf 1 \\\n 2 7\nf 1 2 3\n", "line 6: a face refers to vertex 7, but the file defines 3"},
   };
-  int n = 0;
-  for (const auto& [text, reason] : cases) {
-    const std::string file = path("bad" + std::to_string(n++) + ".obj");
-    writeText(file, text);
-    expectErrorNaming(file, reason);
-  }
+  expectEachRefused(cases, ".obj");
 }
 
 TEST_F(MeshIoTest, PolygonsBecomeConsecutiveTrianglesCoveringThem) {

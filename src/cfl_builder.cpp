@@ -605,6 +605,9 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
                                     geometry.corners.size() * sizeof(std::array<Eigen::Vector3d, 3>) +
                                     geometry.spheres.size() * sizeof(Eigen::Vector4d) +
                                     geometry.planes.size() * sizeof(Eigen::Vector4d) +
+                                    geometry.leaf_corners.size() * sizeof(std::array<Eigen::Vector3d, 3>) +
+                                    geometry.leaf_spheres.size() * sizeof(Eigen::Vector4d) +
+                                    geometry.leaf_planes.size() * sizeof(Eigen::Vector4d) +
                                     geometry.bvh.nodes.size() * sizeof(BvhNode) +
                                     geometry.bvh.triangle_ids.size() * sizeof(std::int32_t));
   stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -79,6 +79,16 @@ MeshModel makeMeshModel(TriangleMesh mesh) {
     }
   }
   model.bvh = buildBvh(model.mesh, 1);
+  const std::size_t count = model.bvh.triangle_ids.size();
+  model.leaf_corners.resize(count);
+  model.leaf_spheres.resize(count);
+  model.leaf_planes.resize(count);
+  for (std::size_t n = 0; n < count; ++n) {
+    const int t = model.bvh.triangle_ids[n];
+    model.leaf_corners[n] = model.corners[t];
+    model.leaf_spheres[n] = model.spheres[t];
+    model.leaf_planes[n] = model.planes[t];
+  }
   model.bounds = boundingBox(model.mesh);
   return model;
 }

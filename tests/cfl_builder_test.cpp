@@ -284,7 +284,8 @@ TEST(CflBuilder, StorageIsWellFormedAndStatisticsMatchIt) {
           bytes(model.voxel_list) + bytes(model.list_offsets) + bytes(model.list_triangles) +
           bytes(model.list_entry_bounds) + bytes(model.voxel_lower_bound) + bytes(model.corner_distance) +
           bytes(geometry.mesh.vertices) + bytes(geometry.mesh.triangles) + bytes(geometry.corners) +
-          bytes(geometry.spheres) + bytes(geometry.planes) + bytes(geometry.bvh.nodes) +
+          bytes(geometry.spheres) + bytes(geometry.planes) + bytes(geometry.leaf_corners) +
+          bytes(geometry.leaf_spheres) + bytes(geometry.leaf_planes) + bytes(geometry.bvh.nodes) +
           bytes(geometry.bvh.triangle_ids);
       EXPECT_EQ(stats.memory_bytes, arrays);
       EXPECT_GE(stats.build_seconds, 0.0);

@@ -163,6 +163,25 @@ TEST(MeshModel, CornersAreTheTrianglesVertices) {
   }
 }
 
+// The search reads the other mesh's triangles by Bvh leaf position: each entry must be the very data of the
+// triangle that position names, bit for bit, or the search would bound and test a different triangle.
+TEST(MeshModel, LeafOrderedCopiesAreTheDataOfTheTrianglesTheBvhNames) {
+  for (const TriangleMesh& mesh : {test::makeMessyMesh(), test::makeTorusKnot(), test::makeTriangleSoup(300, 5)}) {
+    const MeshModel model = makeMeshModel(mesh);
+    const std::size_t count = mesh.triangles.size();
+    ASSERT_EQ(model.bvh.triangle_ids.size(), count);
+    ASSERT_EQ(model.leaf_corners.size(), count);
+    ASSERT_EQ(model.leaf_spheres.size(), count);
+    ASSERT_EQ(model.leaf_planes.size(), count);
+    for (std::size_t n = 0; n < count; ++n) {
+      const int t = model.bvh.triangle_ids[n];
+      for (int k = 0; k < 3; ++k) EXPECT_EQ(model.leaf_corners[n][k], model.corners[t][k]) << "position " << n;
+      EXPECT_EQ(model.leaf_spheres[n], model.spheres[t]) << "position " << n;
+      EXPECT_EQ(model.leaf_planes[n], model.planes[t]) << "position " << n;
+    }
+  }
+}
+
 // The query prunes pairs on these spheres and on the disk each cuts from its triangle's plane: every point of
 // a triangle must be inside its sphere, and the center must lie in the plane. The sphere must also be the
 // smallest: no center among random points of the plane near it (an independent search) needs less radius.

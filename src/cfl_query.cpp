@@ -68,6 +68,29 @@ RigidTransform relativePose(const Eigen::Isometry3d& X_WA, const Eigen::Isometry
   return X_AB;
 }
 
+// Every array of a MeshModel describes the same triangles. makeMeshModel builds them so; a model assembled or
+// edited by hand may not be, and the search would read past the end of the shorter arrays.
+void validateModelShape(const MeshModel& model, const char* which) {
+  const std::size_t triangles = model.mesh.triangles.size();
+  auto check = [&](std::size_t size, const char* field) {
+    if (size == triangles) return;
+    std::ostringstream message;
+    message << which << ": MeshModel::" << field << " has " << size << " entries for " << triangles
+            << " triangles (build the model with makeMeshModel)";
+    throw Error(message.str());
+  };
+  check(model.corners.size(), "corners");
+  check(model.spheres.size(), "spheres");
+  check(model.planes.size(), "planes");
+  check(model.bvh.triangle_ids.size(), "bvh.triangle_ids");
+  check(model.leaf_corners.size(), "leaf_corners");
+  check(model.leaf_spheres.size(), "leaf_spheres");
+  check(model.leaf_planes.size(), "leaf_planes");
+  if (model.bvh.nodes.empty()) {
+    throw Error(std::string(which) + ": MeshModel::bvh has no nodes (build the model with makeMeshModel)");
+  }
+}
+
 // Voxel index range of `grid` covering the box [lo, hi] (clamped to the grid).
 void voxelRange(const VoxelGrid& grid, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int first[3], int last[3]) {
   for (int axis = 0; axis < 3; ++axis) {
@@ -174,6 +197,8 @@ class Search {
   Search(const CflModel& a, const MeshModel& b, const RigidTransform& X_AB, const DistanceOptions& options,
          Scratch& scratch)
       : a_(a), mesh_a_(a.geometry), b_(b), X_AB_(X_AB), options_(options), scratch_(scratch) {
+    validateModelShape(mesh_a_, "A's geometry");
+    validateModelShape(b_, "B");
     scratch_.beginQuery(mesh_a_.corners.size());
     grid_box_ = a_.grid.bounds();
     inverse_voxel_size_ = 1 / a_.grid.voxel_size;

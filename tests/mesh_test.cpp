@@ -16,6 +16,8 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace cfl {
 namespace {
@@ -322,6 +324,43 @@ TEST(PoseValidation, DistanceQueryRejectsBadPoses) {
   Eigen::Isometry3d near_far = far;
   near_far.translation().y() = 3;
   EXPECT_NO_THROW(computeDistance(a, far, b, near_far));
+}
+
+// MeshModel and CflModel are plain structs: one assembled or edited by hand can hold arrays of different
+// lengths. A query names the array and the model instead of reading past the end of one.
+TEST(ModelShapeValidation, DistanceQueryRejectsModelsWhoseArraysDisagree) {
+  BuildOptions options;
+  options.resolution = 6;
+  const CflModel a = buildCflModel(test::makeTorus(1.0, 0.3, 8, 4), options);
+  const MeshModel b = makeMeshModel(test::makeTorusKnot(2, 3, 1.0, 0.3, 16, 4));
+  const Eigen::Isometry3d X_WB = somePose();
+  const std::vector<std::pair<std::function<void(MeshModel&)>, std::string>> damages = {
+      {[](MeshModel& m) { m.leaf_corners.clear(); }, "leaf_corners"},
+      {[](MeshModel& m) { m.leaf_spheres.pop_back(); }, "leaf_spheres"},
+      {[](MeshModel& m) { m.leaf_planes.emplace_back(); }, "leaf_planes"},
+      {[](MeshModel& m) { m.corners.pop_back(); }, "corners"},
+      {[](MeshModel& m) { m.spheres.clear(); }, "spheres"},
+      {[](MeshModel& m) { m.planes.pop_back(); }, "planes"},
+      {[](MeshModel& m) { m.bvh.triangle_ids.pop_back(); }, "bvh.triangle_ids"},
+      {[](MeshModel& m) { m.bvh.nodes.clear(); }, "bvh has no nodes"},
+  };
+  for (const auto& [damage, field] : damages) {
+    MeshModel damaged_b = b;
+    damage(damaged_b);
+    std::string message = errorMessage([&] { computeDistance(a, Eigen::Isometry3d::Identity(), damaged_b, X_WB); });
+    EXPECT_NE(message.find(field), std::string::npos) << message;
+    EXPECT_NE(message.find("b: meshmodel"), std::string::npos) << message;
+    CflModel damaged_a = a;
+    damage(damaged_a.geometry);
+    message = errorMessage([&] { computeDistance(damaged_a, Eigen::Isometry3d::Identity(), b, X_WB); });
+    EXPECT_NE(message.find(field), std::string::npos) << message;
+    EXPECT_NE(message.find("a's geometry"), std::string::npos) << message;
+    // The certificate-keeping overload runs the same search.
+    DistanceCache cache;
+    message = errorMessage([&] { computeDistance(a, Eigen::Isometry3d::Identity(), damaged_b, X_WB, cache); });
+    EXPECT_NE(message.find(field), std::string::npos) << message;
+  }
+  EXPECT_NO_THROW(computeDistance(a, Eigen::Isometry3d::Identity(), b, X_WB));
 }
 
 }  // namespace

@@ -27,7 +27,8 @@ namespace cfl::tool {
 namespace {
 
 constexpr const char* kBenchUsage = R"(usage: cfl bench [A [B]] [--queries N] [--bands LIST] [--resolution N] [--seed S]
-                 [--repeats R] [--clock wall|cpu] [--threads T] [--json OUT.json] [--plot OUT.png]
+                 [--repeats R] [--clock wall|cpu] [--order interleaved|blocked] [--threads T]
+                 [--json OUT.json] [--plot OUT.png]
                  [--moving FRAMES [--separation F]] [--rel-err E] [--abs-err A] [--no-table]
 
 Times exact mesh-mesh distance queries of CFL (A's voxels, B as a plain mesh with its Bvh) against FCL 0.7
@@ -44,7 +45,7 @@ vertex-face contacts of triangles with edges under about 2e-4 units, so meshes t
 Columns, per band:
   dist/diag        median achieved distance / A's bounding-box diagonal
   CFL, OBBRSS, RSS median and 90th percentile of the microseconds per query (each pose timed R times per
-                   method, methods interleaved; the per-pose median enters the statistics)
+                   method, in --order; the per-pose median enters the statistics)
   OBBRSS/CFL       median OBBRSS time / median CFL time (> 1: CFL is faster)
   CFL N_p, N_v     mean triangle pairs tested and voxel + bounding-volume tests per CFL query
   FCL N_p, N_v     the same for OBBRSS, counted by FCL's own traversal statistics (num_leaf_tests,
@@ -59,6 +60,10 @@ Columns, per band:
                    Google Benchmark suite cfl_distance_bench
   --repeats R      timed runs per pose and method (default 3)
   --clock C        wall (default): elapsed time; cpu: the thread's CPU time, steadier on a loaded machine
+  --order O        interleaved (default): pose by pose, the methods in a fresh random order, so every query
+                   runs right after another method's, in the caches and branch predictor state it left;
+                   blocked: each repeat runs one method on all poses, then the next (random method order),
+                   as an application making many queries of one kind does
   --threads T      CFL build threads (default: all)
   --json OUT       also write every figure as JSON
   --plot OUT.png   also draw median time per band and method on a log axis (needs gnuplot)
@@ -177,8 +182,8 @@ void writePlot(const std::string& png, const std::vector<BandReport>& bands, con
 
 int runBench(const std::vector<std::string>& raw, Streams io) {
   const ParsedArgs args = parseArgs(
-      raw, {{"queries"}, {"bands"}, {"resolution"}, {"seed"}, {"repeats"}, {"clock"}, {"threads"}, {"json"}, {"plot"},
-            {"moving"}, {"separation"}, {"rel-err"}, {"abs-err"}, {"no-table", false}});
+      raw, {{"queries"}, {"bands"}, {"resolution"}, {"seed"}, {"repeats"}, {"clock"}, {"order"}, {"threads"}, {"json"},
+            {"plot"}, {"moving"}, {"separation"}, {"rel-err"}, {"abs-err"}, {"no-table", false}});
   if (args.has("help")) {
     io.out << kBenchUsage;
     return 0;
@@ -192,6 +197,11 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
   const std::string clock_name = args.get("clock").value_or("wall");
   if (clock_name != "wall" && clock_name != "cpu") throw UsageError("--clock: expected wall or cpu, got '" + clock_name + "'");
   const Clock clock = clock_name == "cpu" ? Clock::kThreadCpu : Clock::kWall;
+  const std::string order_name = args.get("order").value_or("interleaved");
+  if (order_name != "interleaved" && order_name != "blocked") {
+    throw UsageError("--order: expected interleaved or blocked, got '" + order_name + "'");
+  }
+  const Order order = order_name == "blocked" ? Order::kBlocked : Order::kInterleaved;
   BuildOptions options;
   options.resolution = int(parseInteger(args.get("resolution").value_or("0"), "--resolution", 0, 4096));
   options.threads = int(parseInteger(args.get("threads").value_or("0"), "--threads", 0, 1024));
@@ -232,9 +242,11 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
                    static_cast<long long>(cfl_a.statistics.voxel_count), cfl_a.statistics.average_list_length,
                    double(cfl_a.statistics.memory_bytes) / (1 << 20), model_b_seconds, obbrss_a.buildSeconds(),
                    rss_a.buildSeconds(), obbrss_b.buildSeconds(), rss_b.buildSeconds());
-  io.out << format("queries: %d poses per band, seed %llu, each timed %d times per method (interleaved), "
+  io.out << format("queries: %d poses per band, seed %llu, each timed %d times per method (%s), "
                    "%s microseconds per query\n\n",
-                   queries, static_cast<unsigned long long>(seed), repeats, clock == Clock::kWall ? "wall" : "thread CPU");
+                   queries, static_cast<unsigned long long>(seed), repeats,
+                   order == Order::kBlocked ? "blocked: each method on all poses in turn" : "interleaved pose by pose",
+                   clock == Clock::kWall ? "wall" : "thread CPU");
   if (table) {
     io.out << format("%-7s %9s | %8s %8s | %8s %8s | %8s %8s | %10s | %8s %8s | %8s %8s | %11s\n", "band",
                      "dist/diag", "CFL med", "p90", "OBBRSS", "p90", "RSS", "p90", "OBBRSS/CFL", "CFL N_p", "N_v",
@@ -259,7 +271,7 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
     band_poses.push_back(bench::generateBandPoses(cfl_a.geometry.bounds, model_b.bounds, band, queries, seed, baseline));
     const bench::BandPoses& poses = band_poses.back();
     if (!table) continue;
-    const std::vector<MethodSamples> samples = timeMethods(poses.poses, methods, repeats, clock);
+    const std::vector<MethodSamples> samples = timeMethods(poses.poses, methods, repeats, clock, order);
     BandReport r;
     r.band = band;
     r.target = poses.target_distance;
@@ -307,7 +319,7 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
                      r.band, r.fcl_errors, queries, r.largest_fcl_error / diagonal);
   }
 
-  const SectionContext context{cfl_a, model_b, obbrss_a, obbrss_b, diagonal, repeats, clock};
+  const SectionContext context{cfl_a, model_b, obbrss_a, obbrss_b, diagonal, repeats, clock, order};
   if (moving_frames > 0) {
     passed = runMovingSection(context, moving_frames, separation, seed, io.out) && passed;
   }
@@ -318,7 +330,7 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
     json << "{\n  \"mesh_a\": " << jsonString(path_a) << ",\n  \"mesh_b\": " << jsonString(path_b)
          << ",\n  \"triangles_a\": " << mesh_a.triangles.size() << ",\n  \"triangles_b\": " << model_b.mesh.triangles.size()
          << ",\n  \"diagonal\": " << jsonNumber(diagonal) << ",\n  \"queries_per_band\": " << queries
-         << ",\n  \"repeats\": " << repeats << ",\n  \"clock\": " << jsonString(clock_name) << ",\n  \"seed\": " << seed
+         << ",\n  \"repeats\": " << repeats << ",\n  \"clock\": " << jsonString(clock_name) << ",\n  \"order\": " << jsonString(order_name) << ",\n  \"seed\": " << seed
          << ",\n  \"cfl_model\": {\"resolution\": " << cfl_a.statistics.resolution
          << ", \"voxels\": " << cfl_a.statistics.voxel_count
          << ", \"average_list_length\": " << jsonNumber(cfl_a.statistics.average_list_length)

@@ -107,7 +107,7 @@ bool runMovingSection(const SectionContext& c, int frames, double separation, st
          return computeDistance(c.cfl_a, kIdentity, c.model_b, poses[i], working).distance;
        }},
   };
-  const std::vector<MethodSamples> samples = timeIndexedMethods(poses.size(), methods, c.repeats, c.clock);
+  const std::vector<MethodSamples> samples = timeIndexedMethods(poses.size(), methods, c.repeats, c.clock, c.order);
   const Row cold = summarize(samples[0], &cold_counted);
   const Row warm = summarize(samples[1], &warm_counted);
   const Row obbrss = summarize(samples[2], nullptr);
@@ -182,7 +182,7 @@ bool runApproximateSection(const SectionContext& c, const std::vector<bench::Ban
         {"OBBRSS",
          [&](const Eigen::Isometry3d& X) { return bench::fclDistance(c.obbrss_a, kIdentity, c.obbrss_b, X).distance; }},
     };
-    const std::vector<MethodSamples> samples = timeMethods(poses, methods, c.repeats, c.clock);
+    const std::vector<MethodSamples> samples = timeMethods(poses, methods, c.repeats, c.clock, c.order);
     std::vector<DistanceResult> exact_counted, approx_counted;
     Referee referee(c.cfl_a.geometry, c.model_b, tolerance);
     std::vector<double> references;

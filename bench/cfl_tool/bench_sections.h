@@ -25,6 +25,7 @@ struct SectionContext {
   double diagonal;  ///< A's bounding-box diagonal, the scale of every tolerance.
   int repeats;
   Clock clock;
+  Order order;
 };
 
 /// `frames` frames of bench::generateMovingPoses at `separation` (fraction of the diagonal); times CFL cold,

@@ -25,7 +25,7 @@ double nowMicros(Clock clock) {
 }  // namespace
 
 std::vector<MethodSamples> timeIndexedMethods(std::size_t count, const std::vector<IndexedMethod>& methods,
-                                              int repeats, Clock clock) {
+                                              int repeats, Clock clock, Order order) {
   const std::size_t m = methods.size();
   std::vector<MethodSamples> out(m);
   if (count == 0 || m == 0) return out;
@@ -34,36 +34,52 @@ std::vector<MethodSamples> timeIndexedMethods(std::size_t count, const std::vect
     method.query(0);
     method.query(count - 1);
   }
-  std::vector<std::vector<double>> times(m);
-  // A fresh random order for every pose and repeat. A rotating order would always run the same method
-  // right after the same other one, and a method that follows FCL finds the caches full of FCL's data.
-  std::vector<std::size_t> order(m);
-  std::iota(order.begin(), order.end(), std::size_t(0));
+  // times[j][i * repeats + r]: method j, pose i, repeat r.
+  std::vector<std::vector<double>> times(m, std::vector<double>(count * std::size_t(repeats)));
+  for (auto& samples : out) samples.distances.resize(count);
+  auto sample = [&](std::size_t j, std::size_t i, int r) {
+    const double start = nowMicros(clock);
+    const double d = methods[j].query(i);
+    times[j][i * repeats + r] = nowMicros(clock) - start;
+    if (r == 0) out[j].distances[i] = d;
+  };
+  // A fresh random order every time. A rotating order would always run the same method right after the
+  // same other one, and a method that follows FCL finds the caches full of FCL's data.
+  std::vector<std::size_t> methods_order(m);
+  std::iota(methods_order.begin(), methods_order.end(), std::size_t(0));
   std::mt19937 rng(12345);
-  for (std::size_t i = 0; i < count; ++i) {
-    for (auto& t : times) t.clear();
-    for (int r = 0; r < repeats; ++r) {
-      std::shuffle(order.begin(), order.end(), rng);
-      for (std::size_t j : order) {
-        const double start = nowMicros(clock);
-        const double d = methods[j].query(i);
-        times[j].push_back(nowMicros(clock) - start);
-        if (r == 0) out[j].distances.push_back(d);
+  if (order == Order::kInterleaved) {
+    for (std::size_t i = 0; i < count; ++i) {
+      for (int r = 0; r < repeats; ++r) {
+        std::shuffle(methods_order.begin(), methods_order.end(), rng);
+        for (std::size_t j : methods_order) sample(j, i, r);
       }
     }
-    for (std::size_t j = 0; j < m; ++j) out[j].micros.push_back(bench::median(times[j]));
+  } else {
+    for (int r = 0; r < repeats; ++r) {
+      std::shuffle(methods_order.begin(), methods_order.end(), rng);
+      for (std::size_t j : methods_order) {
+        for (std::size_t i = 0; i < count; ++i) sample(j, i, r);
+      }
+    }
+  }
+  for (std::size_t j = 0; j < m; ++j) {
+    for (std::size_t i = 0; i < count; ++i) {
+      const auto first = times[j].begin() + std::ptrdiff_t(i * repeats);
+      out[j].micros.push_back(bench::median(std::vector<double>(first, first + repeats)));
+    }
   }
   return out;
 }
 
 std::vector<MethodSamples> timeMethods(const std::vector<Eigen::Isometry3d>& poses,
-                                       const std::vector<TimedMethod>& methods, int repeats, Clock clock) {
+                                       const std::vector<TimedMethod>& methods, int repeats, Clock clock, Order order) {
   std::vector<IndexedMethod> indexed;
   indexed.reserve(methods.size());
   for (const auto& method : methods) {
     indexed.push_back({method.name, [&poses, &method](std::size_t i) { return method.query(poses[i]); }});
   }
-  return timeIndexedMethods(poses.size(), indexed, repeats, clock);
+  return timeIndexedMethods(poses.size(), indexed, repeats, clock, order);
 }
 
 double mean(const std::vector<double>& values) {

@@ -29,13 +29,24 @@ struct MethodSamples {
 /// an idle machine the two agree.
 enum class Clock { kWall, kThreadCpu };
 
-/// Times every method on every pose `repeats` times. Methods are interleaved pose by pose, in a random
-/// order drawn afresh for every pose and repeat (fixed seed), so drifts in clock speed, cache state or
-/// machine load hit all of them alike, and no method always follows the same other one; every method first
-/// runs twice untimed to warm caches. One query per sample.
+/// In what order the samples of several methods are taken.
+enum class Order {
+  /// Pose by pose, the methods in a random order drawn afresh for every pose and repeat (fixed seed): drifts
+  /// in clock speed or machine load hit all methods alike, and no method always follows the same other one.
+  /// Every query runs right after another method's, in the cache and branch-predictor state that one left:
+  /// the harshest setting for a short query that follows a long one.
+  kInterleaved,
+  /// Method by method: each repeat runs one method on every pose in turn, then the next method (a random
+  /// method order drawn afresh for every repeat), as an application that makes many queries of one kind
+  /// does. Each method runs in the state its own previous query left.
+  kBlocked,
+};
+
+/// Times every method on every pose `repeats` times, in `order`; every method first runs twice untimed to
+/// warm caches. One query per sample.
 std::vector<MethodSamples> timeMethods(const std::vector<Eigen::Isometry3d>& poses,
                                        const std::vector<TimedMethod>& methods, int repeats,
-                                       Clock clock = Clock::kWall);
+                                       Clock clock = Clock::kWall, Order order = Order::kInterleaved);
 
 /// A method whose query depends on the pose's position in a sequence (a warm start from the previous
 /// frame's answer): `query(i)` answers pose i.
@@ -44,9 +55,10 @@ struct IndexedMethod {
   std::function<double(std::size_t i)> query;
 };
 
-/// timeMethods for `count` indexed poses, with the same interleaving, rotation, warm-up and statistics.
+/// timeMethods for `count` indexed poses, with the same orders, warm-up and statistics.
 std::vector<MethodSamples> timeIndexedMethods(std::size_t count, const std::vector<IndexedMethod>& methods,
-                                              int repeats, Clock clock = Clock::kWall);
+                                              int repeats, Clock clock = Clock::kWall,
+                                              Order order = Order::kInterleaved);
 
 /// Mean of `values`; 0 when empty.
 double mean(const std::vector<double>& values);

@@ -132,6 +132,7 @@ TEST_F(ToolCliTest, CommandLineMistakesAreStatus2AndNameTheProblem) {
       {{"bench", "--queries"}, "--queries"},
       {{"bench", "--bands", "0,,1"}, "item 2"},
       {{"bench", "a", "b", "c"}, "at most two"},
+      {{"bench", "--order", "random"}, "--order"},
       {{"build"}, "expected one mesh"},
       {{"build", mesh, "--resolution", "-4"}, "--resolution"},
       {{"build", mesh, "--padding", "0.5"}, "--padding"},
@@ -290,6 +291,20 @@ TEST_F(ToolCliTest, SmallBenchRunPassesItsExactnessCheckAndWritesJson) {
   EXPECT_TRUE(contains(json, "\"passed\": true")) << json;
   EXPECT_TRUE(contains(json, "\"band\": 0.05")) << json;
   EXPECT_TRUE(contains(r.out, "OBBRSS/CFL")) << r.out;
+}
+
+// Blocked order times the same queries as interleaved, only in another sequence: the answers are checked the
+// same way, and the run says which order it used.
+TEST_F(ToolCliTest, BlockedBenchRunPassesItsExactnessCheckAndSaysItsOrder) {
+  const std::string mesh = writeMesh("torus.obj", test::makeTorus(1.0, 0.35, 16, 8));
+  const ToolRun r = run({"bench", mesh, "--queries", "3", "--bands", "0.02", "--repeats", "2", "--resolution", "10",
+                         "--order", "blocked", "--moving", "6", "--json", path("out.json")});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_TRUE(contains(r.out, "blocked")) << r.out;
+  EXPECT_FALSE(contains(r.out, "MISMATCH")) << r.out;
+  const std::string json = readFile(path("out.json"));
+  EXPECT_TRUE(contains(json, "\"order\": \"blocked\"")) << json;
+  EXPECT_TRUE(contains(json, "\"passed\": true")) << json;
 }
 
 TEST_F(ToolCliTest, PlotWithoutGnuplotFailsBeforeWorkingAndSaysWhy) {

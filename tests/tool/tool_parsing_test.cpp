@@ -2,13 +2,16 @@
 // bad input gets an error naming the line (or option, or item) at fault.
 
 #include "cfl/error.h"
+#include "measure.h"
 #include "pose_file.h"
 #include "support/test_meshes.h"
 #include "tool_args.h"
 
 #include <gtest/gtest.h>
 
+#include <set>
 #include <sstream>
+#include <utility>
 
 namespace cfl::tool {
 namespace {
@@ -213,6 +216,52 @@ TEST(ArgsTest, BandListsParseAndNameTheBadItem) {
     const std::string message = messageOf<UsageError>([&] { parseBandList(text, "--bands"); });
     EXPECT_NE(message.find(item), std::string::npos) << text << ": " << message;
     EXPECT_NE(message.find("--bands"), std::string::npos) << text << ": " << message;
+  }
+}
+
+// The two timing orders take the same samples (every method on every pose, `repeats` times, after two
+// untimed warm-up queries each) and differ only in sequence: interleaved finishes a pose before the next,
+// blocked runs each method over all poses before the next method.
+TEST(MeasureTest, OrdersTakeEverySampleInTheirOwnSequence) {
+  constexpr std::size_t kPoses = 5;
+  constexpr int kRepeats = 3;
+  std::vector<std::pair<int, std::size_t>> calls;  // (method, pose)
+  std::vector<IndexedMethod> methods;
+  for (int j = 0; j < 3; ++j) {
+    methods.push_back({"m" + std::to_string(j), [&calls, j](std::size_t i) {
+                         calls.emplace_back(j, i);
+                         return double(10 * j) + double(i);
+                       }});
+  }
+  for (const Order order : {Order::kInterleaved, Order::kBlocked}) {
+    calls.clear();
+    const std::vector<MethodSamples> samples = timeIndexedMethods(kPoses, methods, kRepeats, Clock::kWall, order);
+    ASSERT_EQ(samples.size(), methods.size());
+    for (std::size_t j = 0; j < methods.size(); ++j) {
+      ASSERT_EQ(samples[j].micros.size(), kPoses);
+      for (std::size_t i = 0; i < kPoses; ++i) EXPECT_EQ(samples[j].distances[i], double(10 * j) + double(i));
+    }
+    const std::size_t warm_up = 2 * methods.size();
+    ASSERT_EQ(calls.size(), warm_up + methods.size() * kPoses * kRepeats);
+    const std::vector<std::pair<int, std::size_t>> timed(calls.begin() + std::ptrdiff_t(warm_up), calls.end());
+    if (order == Order::kInterleaved) {
+      // Pose i's samples are the block [i * 9, (i + 1) * 9): three of each method.
+      for (std::size_t n = 0; n < timed.size(); ++n) EXPECT_EQ(timed[n].second, n / (methods.size() * kRepeats)) << n;
+    } else {
+      // Each run of kPoses samples is one method over poses 0..4, and every method runs once per repeat.
+      for (int r = 0; r < kRepeats; ++r) {
+        std::set<int> seen;
+        for (std::size_t block = 0; block < methods.size(); ++block) {
+          const std::size_t begin = (r * methods.size() + block) * kPoses;
+          const int method = timed[begin].first;
+          seen.insert(method);
+          for (std::size_t i = 0; i < kPoses; ++i) {
+            EXPECT_EQ(timed[begin + i], std::make_pair(method, i)) << "repeat " << r << " block " << block;
+          }
+        }
+        EXPECT_EQ(seen.size(), methods.size()) << "repeat " << r;
+      }
+    }
   }
 }
 

@@ -34,14 +34,21 @@ std::vector<MethodSamples> timeIndexedMethods(std::size_t count, const std::vect
     method.query(0);
     method.query(count - 1);
   }
-  // times[j][i * repeats + r]: method j, pose i, repeat r.
-  std::vector<std::vector<double>> times(m, std::vector<double>(count * std::size_t(repeats)));
+  // Method j's samples: times[j][slot * repeats + r] for repeat r, where the slot is the pose in blocked
+  // order and 0 interleaved, which finishes a pose before the next and keeps only its samples.
+  const std::size_t slots = order == Order::kBlocked ? count : 1;
+  std::vector<std::vector<double>> times(m, std::vector<double>(slots * std::size_t(repeats)));
   for (auto& samples : out) samples.distances.resize(count);
   auto sample = [&](std::size_t j, std::size_t i, int r) {
+    const std::size_t slot = slots == 1 ? 0 : i;
     const double start = nowMicros(clock);
     const double d = methods[j].query(i);
-    times[j][i * repeats + r] = nowMicros(clock) - start;
+    times[j][slot * repeats + r] = nowMicros(clock) - start;
     if (r == 0) out[j].distances[i] = d;
+  };
+  auto medianOf = [&](std::size_t j, std::size_t slot) {
+    const auto first = times[j].begin() + std::ptrdiff_t(slot * repeats);
+    return bench::median(std::vector<double>(first, first + repeats));
   };
   // A fresh random order every time. A rotating order would always run the same method right after the
   // same other one, and a method that follows FCL finds the caches full of FCL's data.
@@ -54,6 +61,7 @@ std::vector<MethodSamples> timeIndexedMethods(std::size_t count, const std::vect
         std::shuffle(methods_order.begin(), methods_order.end(), rng);
         for (std::size_t j : methods_order) sample(j, i, r);
       }
+      for (std::size_t j = 0; j < m; ++j) out[j].micros.push_back(medianOf(j, 0));
     }
   } else {
     for (int r = 0; r < repeats; ++r) {
@@ -62,11 +70,8 @@ std::vector<MethodSamples> timeIndexedMethods(std::size_t count, const std::vect
         for (std::size_t i = 0; i < count; ++i) sample(j, i, r);
       }
     }
-  }
-  for (std::size_t j = 0; j < m; ++j) {
-    for (std::size_t i = 0; i < count; ++i) {
-      const auto first = times[j].begin() + std::ptrdiff_t(i * repeats);
-      out[j].micros.push_back(bench::median(std::vector<double>(first, first + repeats)));
+    for (std::size_t j = 0; j < m; ++j) {
+      for (std::size_t i = 0; i < count; ++i) out[j].micros.push_back(medianOf(j, i));
     }
   }
   return out;

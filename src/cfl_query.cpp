@@ -1215,6 +1215,8 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
 
 DistanceResult bruteForceDistance(const MeshModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
                                   const Eigen::Isometry3d& X_WB) {
+  validateModelShape(a, "A");
+  validateModelShape(b, "B");
   const RigidTransform X_AB = relativePose(X_WA, X_WB);
   DistanceResult r;
   double best = kInfinity;  // squared
@@ -1253,8 +1255,9 @@ DistanceResult bruteForceDistance(const MeshModel& a, const Eigen::Isometry3d& X
 
 bool computeCollision(const MeshModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
                       const Eigen::Isometry3d& X_WB, std::size_t max_contacts, std::vector<Contact>* contacts) {
+  validateModelShape(a, "A");
+  validateModelShape(b, "B");
   const RigidTransform X_AB = relativePose(X_WA, X_WB);
-  if (a.bvh.nodes.empty() || b.bvh.nodes.empty()) return false;
   std::size_t found = 0;
   const std::size_t limit = contacts ? std::max<std::size_t>(max_contacts, 1) : 1;
   auto& stack = tls_scratch.node_pairs;

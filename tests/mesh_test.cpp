@@ -363,5 +363,26 @@ TEST(ModelShapeValidation, DistanceQueryRejectsModelsWhoseArraysDisagree) {
   EXPECT_NO_THROW(computeDistance(a, Eigen::Isometry3d::Identity(), b, X_WB));
 }
 
+// The collision query and the brute-force reference read the same arrays, so they refuse the same models.
+TEST(ModelShapeValidation, CollisionAndBruteForceRejectModelsWhoseArraysDisagree) {
+  const MeshModel a = makeMeshModel(test::makeTorus(1.0, 0.3, 8, 4));
+  const MeshModel b = makeMeshModel(test::makeTorusKnot(2, 3, 1.0, 0.3, 16, 4));
+  const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
+  MeshModel short_spheres = b;
+  short_spheres.spheres.pop_back();
+  std::string message = errorMessage([&] { bruteForceDistance(a, I, short_spheres, I); });
+  EXPECT_NE(message.find("b: meshmodel::spheres"), std::string::npos) << message;
+  MeshModel short_ids = a;
+  short_ids.bvh.triangle_ids.pop_back();
+  message = errorMessage([&] { computeCollision(short_ids, I, b, I); });
+  EXPECT_NE(message.find("a: meshmodel::bvh.triangle_ids"), std::string::npos) << message;
+  MeshModel no_nodes = b;
+  no_nodes.bvh.nodes.clear();
+  message = errorMessage([&] { computeCollision(a, I, no_nodes, I); });
+  EXPECT_NE(message.find("bvh has no nodes"), std::string::npos) << message;
+  EXPECT_NO_THROW(computeCollision(a, I, b, I));
+  EXPECT_NO_THROW(bruteForceDistance(a, I, b, I));
+}
+
 }  // namespace
 }  // namespace cfl

@@ -149,6 +149,8 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
 /// only the exact triangle distance and each triangle's bounding sphere (MeshModel::spheres), which skips a
 /// pair whose spheres are farther apart than the best distance so far (the answer and its pair are those of
 /// the full loop). O(|A| |B|): the bunny against itself, 13.5 million pairs, in tens of milliseconds.
+/// Like every query here, throws cfl::Error naming the array when a model's arrays disagree in length (a
+/// model assembled by hand rather than by makeMeshModel).
 DistanceResult bruteForceDistance(const MeshModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
                                   const Eigen::Isometry3d& X_WB);
 

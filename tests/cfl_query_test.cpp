@@ -883,6 +883,48 @@ std::int64_t checkCachedFrames(const Shape& a, const Shape& b, const std::vector
   return cache.reused - reused_before;
 }
 
+// Two layouts where a voxel's list must keep triangles that nearly tie or that dwarf the voxel: A made of two
+// copies of a sheet a hair apart (every voxel near it sees two nearly identical candidates, one of which
+// topology culling or the list's bounds could wrongly drop), and A made of tiny triangles among three huge
+// ones that cross the whole grid. B is A itself or a hemisphere, at every range, in both query modes.
+TEST(ComputeDistance, NearlyCoincidentLayersAndHugeTrianglesAmongTinyOnesMatchBruteForce) {
+  std::vector<std::unique_ptr<Shape>> as;
+  for (double gap : {1e-7, 1e-3}) {
+    TriangleMesh upper = test::makeWavySheet(1.0, 0.05, 8);
+    for (Eigen::Vector3d& v : upper.vertices) v.z() += gap;
+    std::ostringstream name;
+    name << "double_sheet_" << gap << "_apart";
+    as.push_back(makeShape(name.str(), test::merge(test::makeWavySheet(1.0, 0.05, 8), upper), 16));
+  }
+  TriangleMesh huge;
+  huge.vertices = {{-1.2, -1.1, -0.9}, {1.3, -0.8, 0.2}, {-0.1, 1.2, 1.1}, {1.1, 1.2, -1.0}, {-1.0, 0.9, 0.3},
+                   {0.2, -1.2, 1.0}, {-1.1, -0.2, 1.2}, {1.2, 0.3, 0.9}, {0.1, 0.2, -1.2}};
+  huge.triangles = {{0, 1, 2}, {3, 4, 5}, {6, 7, 8}};
+  as.push_back(makeShape("huge_among_tiny", test::merge(test::makeTriangleSoup(150, 31, 1.0, 0.02), huge), 16));
+  const auto hemisphere = makeShape("hemisphere", test::makeHemisphere(0.6, 4, 10), 12);
+  test::Rng rng(3131);
+  Failures failures;
+  int poses = 0;
+  for (const auto& a : as) {
+    for (const Shape* b : {a.get(), hemisphere.get()}) {
+      for (double fraction : kSeparations) {
+        for (int n = 0; n < 6; ++n) {
+          const Pose pose = makePose(*a, *b, fraction, rng);
+          const DistanceResult truth = bruteForceDistance(a->model, pose.X_WA, b->model, pose.X_WB);
+          ++poses;
+          for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+            DistanceOptions options;
+            options.mode = mode;
+            checkResult(computeDistance(a->cfl, pose.X_WA, b->model, pose.X_WB, options), truth, *a, *b, pose,
+                        mode == QueryMode::kHierarchical ? "hierarchical" : "paper", failures);
+          }
+        }
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0) << "of " << poses << " poses";
+}
+
 // B's triangles span several of A's voxels on each axis: most voxels of a triangle's box miss its plane and
 // are skipped, and the query must still match brute force at every range, searched plainly or through a
 // certifying cache (whose margin widens what is kept).

@@ -332,7 +332,7 @@ class Search {
   }
   // The rest of the filter, out of line: B's plane, inlined in the loops, stops most candidates (on wuson at
   // 2% of the diagonal 185 of 317 per query), and calling out for all of them cost 1.3% to 2.1% more
-  // instructions per query at 2% on the four benchmark meshes (wuson 1.8% at 0.5%).
+  // instructions per query at 2% on the four benchmark meshes (wuson 2.1% at 0.5%).
 #if defined(__GNUC__)
   __attribute__((noinline))
 #endif

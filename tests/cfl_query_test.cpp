@@ -889,12 +889,13 @@ std::int64_t checkCachedFrames(const Shape& a, const Shape& b, const std::vector
 // ones that cross the whole grid. B is A itself or a hemisphere, at every range, in both query modes.
 TEST(ComputeDistance, NearlyCoincidentLayersAndHugeTrianglesAmongTinyOnesMatchBruteForce) {
   std::vector<std::unique_ptr<Shape>> as;
+  const TriangleMesh sheet = test::makeWavySheet(1.0, 0.05, 8);
   for (double gap : {1e-7, 1e-3}) {
-    TriangleMesh upper = test::makeWavySheet(1.0, 0.05, 8);
+    TriangleMesh upper = sheet;
     for (Eigen::Vector3d& v : upper.vertices) v.z() += gap;
     std::ostringstream name;
     name << "double_sheet_" << gap << "_apart";
-    as.push_back(makeShape(name.str(), test::merge(test::makeWavySheet(1.0, 0.05, 8), upper), 16));
+    as.push_back(makeShape(name.str(), test::merge(sheet, upper), 16));
   }
   TriangleMesh huge;
   huge.vertices = {{-1.2, -1.1, -0.9}, {1.3, -0.8, 0.2}, {-0.1, 1.2, 1.1}, {1.1, 1.2, -1.0}, {-1.0, 0.9, 0.3},

@@ -23,6 +23,15 @@
 #error "cfl must be compiled without -ffast-math: its exact queries rely on IEEE double rounding"
 #endif
 
+// Inlining decisions measured in instructions per query (see each use); other compilers take their own.
+#if defined(__GNUC__)
+#define CFL_NOINLINE __attribute__((noinline))
+#define CFL_ALWAYS_INLINE __attribute__((always_inline))
+#else
+#define CFL_NOINLINE
+#define CFL_ALWAYS_INLINE
+#endif
+
 namespace cfl {
 namespace {
 
@@ -282,9 +291,7 @@ class Search {
   // lists the pair when it is within the margin.
   // Out of line: the loops that call it run it on a few percent of their candidates, and inlined it would
   // make them save and restore its registers on every candidate.
-#if defined(__GNUC__)
-  __attribute__((noinline))
-#endif
+  CFL_NOINLINE
   void testPair(int a, const PreparedTriangle& tb) {
     ++counters_.triangle_pairs;
     Eigen::Vector3d p, q;
@@ -315,9 +322,7 @@ class Search {
   // mayBeCloser past the spheres' gap, for candidates already filtered on it at a threshold the search has
   // since lowered: again at the lowered one, it ruled out 5 of the 396 candidates per query on wuson at 2% of
   // the diagonal, and skipping it took 2.4% off the query's instructions (torus knot 1.1%, bunny 0.7%).
-#if defined(__GNUC__)
-  __attribute__((always_inline))
-#endif
+  CFL_ALWAYS_INLINE
   bool mayBeCloserBeyondSpheres(int a, const PreparedTriangle& tb, double threshold) const {
     const auto& c = mesh_a_.corners[a];
     // B's plane first, the more selective of the two: in the other order, on wuson at 2% of the diagonal, A's
@@ -333,9 +338,7 @@ class Search {
   // The rest of the filter, out of line: B's plane, inlined in the loops, stops most candidates (on wuson at
   // 2% of the diagonal 185 of 317 per query), and calling out for all of them cost 1.3% to 2.1% more
   // instructions per query at 2% on the four benchmark meshes (wuson 2.1% at 0.5%).
-#if defined(__GNUC__)
-  __attribute__((noinline))
-#endif
+  CFL_NOINLINE
   bool mayBeCloserPastBPlane(int a, const PreparedTriangle& tb, double threshold, double t0, double t1, double t2) const {
     const auto& c = mesh_a_.corners[a];
     const Eigen::Vector4d& plane = mesh_a_.planes[a];
@@ -374,9 +377,7 @@ class Search {
   // by 5.4e-9 with the shortcut), and any axis bounds the distance only if every corner is projected on it.
   // Out of line, like testPair: only the few candidates that pass every other test get here, and inlined
   // its registers were saved and restored on every call of mayBeCloser (wuson: 0.8% more instructions).
-#if defined(__GNUC__)
-  __attribute__((noinline))
-#endif
+  CFL_NOINLINE
   static bool edgeAxesSeparate(const std::array<Eigen::Vector3d, 3>& c, const PreparedTriangle& tb, int corner_a,
                                int corner_b, double threshold) {
     static constexpr int kNext[3] = {1, 2, 0}, kPrevious[3] = {2, 0, 1};

@@ -2,6 +2,7 @@
 
 #include "cfl/cfl_query.h"
 #include "cfl/error.h"
+#include "cfl/query_kernels.h"
 #include "bench_sections.h"
 #include "commands.h"
 #include "fcl_baseline.h"
@@ -223,6 +224,8 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
 
   const std::string path_a = args.positionals.empty() ? findDataFile("bunny.obj") : args.positionals[0];
   const std::string path_b = args.positionals.size() < 2 ? path_a : args.positionals[1];
+  // Before the build: a bad CFL_KERNELS fails here, not after it.
+  const char* kernels = queryKernelsName(activeQueryKernels());
 
   const CflModel cfl_a = obtainCflModel(path_a, options, io.err);
   const TriangleMesh& mesh_a = cfl_a.geometry.mesh;
@@ -243,10 +246,10 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
                    double(cfl_a.statistics.memory_bytes) / (1 << 20), model_b_seconds, obbrss_a.buildSeconds(),
                    rss_a.buildSeconds(), obbrss_b.buildSeconds(), rss_b.buildSeconds());
   io.out << format("queries: %d poses per band, seed %llu, each timed %d times per method (%s), "
-                   "%s microseconds per query\n\n",
+                   "%s microseconds per query; CFL's query kernels: %s\n\n",
                    queries, static_cast<unsigned long long>(seed), repeats,
                    order == Order::kBlocked ? "blocked: each method on all poses in turn" : "interleaved pose by pose",
-                   clock == Clock::kWall ? "wall" : "thread CPU");
+                   clock == Clock::kWall ? "wall" : "thread CPU", kernels);
   if (table) {
     io.out << format("%-7s %9s | %8s %8s | %8s %8s | %8s %8s | %10s | %8s %8s | %8s %8s | %11s\n", "band",
                      "dist/diag", "CFL med", "p90", "OBBRSS", "p90", "RSS", "p90", "OBBRSS/CFL", "CFL N_p", "N_v",
@@ -330,7 +333,8 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
     json << "{\n  \"mesh_a\": " << jsonString(path_a) << ",\n  \"mesh_b\": " << jsonString(path_b)
          << ",\n  \"triangles_a\": " << mesh_a.triangles.size() << ",\n  \"triangles_b\": " << model_b.mesh.triangles.size()
          << ",\n  \"diagonal\": " << jsonNumber(diagonal) << ",\n  \"queries_per_band\": " << queries
-         << ",\n  \"repeats\": " << repeats << ",\n  \"clock\": " << jsonString(clock_name) << ",\n  \"order\": " << jsonString(order_name) << ",\n  \"seed\": " << seed
+         << ",\n  \"repeats\": " << repeats << ",\n  \"clock\": " << jsonString(clock_name) << ",\n  \"order\": " << jsonString(order_name)
+         << ",\n  \"query_kernels\": " << jsonString(kernels) << ",\n  \"seed\": " << seed
          << ",\n  \"cfl_model\": {\"resolution\": " << cfl_a.statistics.resolution
          << ", \"voxels\": " << cfl_a.statistics.voxel_count
          << ", \"average_list_length\": " << jsonNumber(cfl_a.statistics.average_list_length)

@@ -3,6 +3,7 @@
 
 #include "cfl/cfl_query.h"
 #include "cfl/error.h"
+#include "cfl/query_kernels.h"
 #include "commands.h"
 #include "fcl_baseline.h"
 #include "measure.h"
@@ -66,7 +67,8 @@ int runPaper(const std::vector<std::string>& raw, Streams io) {
   const std::string path = args.positionals.empty() ? findDataFile("bunny.obj") : args.positionals[0];
   const TriangleMesh mesh = readMeshArgument(path);
 
-  io.out << format("cfl paper: %s, %zu triangles (the paper's bunny has 1314)\n\n", path.c_str(), mesh.triangles.size());
+  io.out << format("cfl paper: %s, %zu triangles (the paper's bunny has 1314); CFL's query kernels: %s\n\n",
+                   path.c_str(), mesh.triangles.size(), queryKernelsName(activeQueryKernels()));
   io.out << "Table 1: CFL voxels, padding 2\n";
   io.out << format("%-10s %-12s %9s %16s %14s %8s %10s %9s\n", "resolution", "grid", "voxels", "avg CFL (ours)",
                    "avg CFL paper", "longest", "memory MB", "build s");

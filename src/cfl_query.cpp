@@ -1,44 +1,11 @@
-#include "cfl/cfl_query.h"
+// The public queries: each runs in the build of the search that activeQueryKernels names
+// (detail/query_kernels.h).
 
-#include "cfl/error.h"
-#include "cfl/query_kernels.h"
-#include "cfl/triangle_distance.h"
-#include "detail/box_triangle_bound.h"
-#include "detail/exact_arithmetic.h"
-#include "detail/nearest_triangle.h"
+#include "detail/query_kernels.h"
 
-#include <Eigen/Geometry>
-
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
-#include <algorithm>
 #include <atomic>
-#include <cmath>
-#include <cstdint>
 #include <cstdlib>
 #include <cstring>
-#include <limits>
-#include <sstream>
-#include <string>
-#include <tuple>
-
-// The bounds' grid lookups (roundToInteger) and the distance kernels' error-free transformations rely on
-// IEEE double arithmetic as written; -ffast-math would reassociate them into wrong answers.
-#if defined(__FAST_MATH__)
-#error "cfl must be compiled without -ffast-math: its exact queries rely on IEEE double rounding"
-#endif
-
-// Inlining decisions measured in instructions per query (see each use); other compilers take their own.
-#if defined(__GNUC__)
-#define CFL_NOINLINE __attribute__((noinline))
-#define CFL_ALWAYS_INLINE __attribute__((always_inline))
-#else
-#define CFL_NOINLINE
-#define CFL_ALWAYS_INLINE
-#endif
-
 
 namespace cfl {
 
@@ -60,81 +27,19 @@ void validatePose(const Eigen::Isometry3d& X, const char* what) {
   }
 }
 
-}  // namespace cfl
-
-
-// The query compiled twice. Everything the search calls from a header (Eigen, the standard library, cfl's own
-// headers) is declared above, before the target pragma: GCC compiles a function for the target in force where
-// it is declared, so the header functions the x86-64-v3 copy does not inline stay baseline code, and the
-// linker, which keeps one copy of each such function for the whole program, never picks one that needs
-// AVX2. Only what the two includes below define, in namespaces of their own, is compiled for x86-64-v3; and
-// Eigen, configured before the pragma, keeps its 16-byte alignment (FCL's and the caller's Isometry3d).
-// On wuson at 2% of the diagonal the x86-64-v3 copy runs 13.5% fewer instructions per query (211,793 to
-// 183,132; cachegrind, 100 poses) and took 0.954 (wuson) and 0.944 (bunny) of the baseline's time (median
-// ratio of 30 paired rounds, one FCL query before each CFL query). With fused multiply-adds it ran 18.0%
-// fewer instructions and 0.901 / 0.930 of the time, but its results would then differ from the baseline's
-// in the last bits (so from one machine to another), and the exact arithmetic of the triangle kernels
-// (detail/exact_arithmetic.h) needs products rounded as written.
-#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 11 && defined(__x86_64__) && !defined(__AVX2__)
-#define CFL_X86_64_V3_KERNELS 1
-#else
-#define CFL_X86_64_V3_KERNELS 0
-#endif
-
-namespace cfl {
-
-namespace generic_kernels {
 namespace {
-#include "detail/distance_search.inc"
-}  // namespace
-}  // namespace generic_kernels
-
-#if CFL_X86_64_V3_KERNELS
-#pragma GCC push_options
-#pragma GCC target("arch=x86-64-v3")
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wunused-function"  // segmentSegmentSquaredDistance: the search needs no copy
-namespace x86_64_v3_kernels {
-namespace {
-#include "detail/triangle_distance_kernels.inc"
-#include "detail/distance_search.inc"
-}  // namespace
-}  // namespace x86_64_v3_kernels
-#pragma GCC diagnostic pop
-#pragma GCC pop_options
-#endif
-
-namespace {
-
-// One build's entry points.
-struct KernelTable {
-  QueryKernels kernels;
-  decltype(&generic_kernels::distanceImpl) distance;
-  decltype(&generic_kernels::cachedDistanceImpl) cached_distance;
-  decltype(&generic_kernels::bruteForceImpl) brute_force;
-  decltype(&generic_kernels::collisionImpl) collision;
-};
-
-constexpr KernelTable kGenericTable{QueryKernels::kGeneric, &generic_kernels::distanceImpl,
-                                    &generic_kernels::cachedDistanceImpl, &generic_kernels::bruteForceImpl,
-                                    &generic_kernels::collisionImpl};
-#if CFL_X86_64_V3_KERNELS
-constexpr KernelTable kX86_64_V3Table{QueryKernels::kX86_64_V3, &x86_64_v3_kernels::distanceImpl,
-                                      &x86_64_v3_kernels::cachedDistanceImpl, &x86_64_v3_kernels::bruteForceImpl,
-                                      &x86_64_v3_kernels::collisionImpl};
-#endif
 
 // The build's table, or null when this library lacks it or this CPU cannot run it.
-const KernelTable* availableTable(QueryKernels kernels) {
+const detail::QueryKernelTable* availableTable(QueryKernels kernels) {
   switch (kernels) {
     case QueryKernels::kGeneric:
-      return &kGenericTable;
+      return &detail::kGenericQueryKernels;
     case QueryKernels::kX86_64_V3:
 #if CFL_X86_64_V3_KERNELS
       // libgcc's check covers the operating system too: AVX2 counts only where the kernel saves the YMM
       // registers (XGETBV).
       __builtin_cpu_init();
-      if (__builtin_cpu_supports("x86-64-v3")) return &kX86_64_V3Table;
+      if (__builtin_cpu_supports("x86-64-v3")) return &detail::kX86_64_V3QueryKernels;
 #endif
       return nullptr;
   }
@@ -151,29 +56,29 @@ std::string unavailableMessage(QueryKernels kernels) {
   return message;
 }
 
-const KernelTable& tableFromEnvironment() {
+const detail::QueryKernelTable& tableFromEnvironment() {
   const char* value = std::getenv("CFL_KERNELS");
   if (value == nullptr || *value == '\0' || std::strcmp(value, "auto") == 0) {
-    const KernelTable* best = availableTable(QueryKernels::kX86_64_V3);
-    return best != nullptr ? *best : kGenericTable;
+    const detail::QueryKernelTable* best = availableTable(QueryKernels::kX86_64_V3);
+    return best != nullptr ? *best : detail::kGenericQueryKernels;
   }
   for (QueryKernels kernels : {QueryKernels::kGeneric, QueryKernels::kX86_64_V3}) {
     if (std::strcmp(value, queryKernelsName(kernels)) != 0) continue;
-    const KernelTable* table = availableTable(kernels);
+    const detail::QueryKernelTable* table = availableTable(kernels);
     if (table == nullptr) throw Error("CFL_KERNELS=" + std::string(value) + ": " + unavailableMessage(kernels));
     return *table;
   }
   throw Error("CFL_KERNELS=" + std::string(value) + ": expected auto, generic or x86-64-v3");
 }
 
-std::atomic<const KernelTable*> active_table{nullptr};
+std::atomic<const detail::QueryKernelTable*> active_table{nullptr};
 
 // Read on every query: one load, then the call through the table.
-const KernelTable& activeTable() {
-  if (const KernelTable* table = active_table.load(std::memory_order_acquire)) return *table;
+const detail::QueryKernelTable& activeTable() {
+  if (const detail::QueryKernelTable* table = active_table.load(std::memory_order_acquire)) return *table;
   // A static's initializer that throws runs again at the next call: a bad CFL_KERNELS fails every query.
-  static const KernelTable& chosen = tableFromEnvironment();
-  const KernelTable* expected = nullptr;
+  static const detail::QueryKernelTable& chosen = tableFromEnvironment();
+  const detail::QueryKernelTable* expected = nullptr;
   active_table.compare_exchange_strong(expected, &chosen);  // a concurrent setQueryKernels wins
   return *active_table.load(std::memory_order_acquire);
 }
@@ -185,7 +90,7 @@ QueryKernels activeQueryKernels() { return activeTable().kernels; }
 bool queryKernelsAvailable(QueryKernels kernels) { return availableTable(kernels) != nullptr; }
 
 void setQueryKernels(QueryKernels kernels) {
-  const KernelTable* table = availableTable(kernels);
+  const detail::QueryKernelTable* table = availableTable(kernels);
   if (table == nullptr) throw Error(unavailableMessage(kernels));
   active_table.store(table, std::memory_order_release);
 }

@@ -1,0 +1,45 @@
+// The query's x86-64-v3 build: the search compiled for AVX2, BMI2 and the VEX encodings (see
+// cfl/query_kernels.h; chosen at run time in cfl_query.cpp). Its triangle kernels are in
+// triangle_distance_x86_64_v3.cpp.
+//
+// Everything the search calls from a header (Eigen, the standard library, cfl's own headers) is declared in
+// detail/query_kernels.h, included before the target pragma: GCC compiles a function for the target in force
+// where it is declared, so the header functions this copy does not inline stay baseline code, and the linker,
+// which keeps one copy of each such function for the whole program, never picks one that needs AVX2 (objdump
+// finds no VEX instruction in this object's weak functions). Only what the include below defines, in its own
+// namespace, is compiled for x86-64-v3; and Eigen, configured before the pragma, keeps its 16-byte alignment
+// (that of FCL's and the caller's Isometry3d).
+//
+// Instructions per query at 2% of the diagonal (cachegrind, 100 poses run twice, the difference of a run with
+// two rounds and one): wuson 213,401 in the baseline build, 184,944 in this one (-13.3%); the bunny 170,335
+// and 148,832 (-12.6%). Time, median ratio of the median query over paired rounds (one FCL query before each
+// CFL query, as in `cfl bench`): 0.923 on wuson, 0.910 on the bunny and 0.912 on the rock at 2% (30, 30 and 20
+// rounds), 0.986 on the torus knot at 0.5% (20 rounds). With fused multiply-adds allowed it ran about 5% fewer again (wuson 175,395 against
+// 184,808 in a test build), but its results would differ from the baseline's in the last bits, so from one
+// machine to another, and the triangle kernels' exact arithmetic (detail/exact_arithmetic.h) needs products
+// rounded as written: the library builds with -ffp-contract=off.
+
+#include "detail/query_kernels.h"
+
+#if CFL_X86_64_V3_KERNELS
+
+#pragma GCC push_options
+#pragma GCC target("arch=x86-64-v3")
+
+namespace cfl::detail {
+namespace x86_64_v3 {
+namespace {
+// Inside x86_64_v3, the search's calls to the triangle kernels find this build's (detail/query_kernels.h).
+#include "detail/distance_search.inc"
+}  // namespace
+}  // namespace x86_64_v3
+
+const QueryKernelTable kX86_64_V3QueryKernels{QueryKernels::kX86_64_V3, &x86_64_v3::distanceImpl,
+                                              &x86_64_v3::cachedDistanceImpl, &x86_64_v3::bruteForceImpl,
+                                              &x86_64_v3::collisionImpl};
+
+}  // namespace cfl::detail
+
+#pragma GCC pop_options
+
+#endif  // CFL_X86_64_V3_KERNELS

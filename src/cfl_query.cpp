@@ -47,11 +47,14 @@ const detail::QueryKernelTable* availableTable(QueryKernels kernels) {
 }
 
 std::string unavailableMessage(QueryKernels kernels) {
+  if (kernels != QueryKernels::kGeneric && kernels != QueryKernels::kX86_64_V3) {
+    return "QueryKernels value " + std::to_string(static_cast<int>(kernels)) + " names no build of the cfl query";
+  }
   std::string message = std::string("cfl query kernels '") + queryKernelsName(kernels) + "' are not available: ";
 #if CFL_X86_64_V3_KERNELS
   message += "this CPU does not run x86-64-v3 (AVX2, BMI2, FMA, F16C, LZCNT, MOVBE)";
 #else
-  message += "this build of cfl has no x86-64-v3 copy of the query (it needs GCC 11 or later on x86-64)";
+  message += "this build of cfl has no x86-64-v3 copy of the query (it needs GCC 12 or later on x86-64)";
 #endif
   return message;
 }

@@ -208,6 +208,14 @@ TEST_F(QueryKernelsTest, SelectingABuildMakesItRunOrFailsNamingIt) {
     }
     EXPECT_EQ(activeQueryKernels(), QueryKernels::kGeneric);
   }
+  const QueryKernels before = activeQueryKernels();
+  try {
+    setQueryKernels(static_cast<QueryKernels>(7));
+    ADD_FAILURE() << "a value that names no build must throw";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("value 7"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(activeQueryKernels(), before);
   EXPECT_STREQ(queryKernelsName(QueryKernels::kGeneric), "generic");
   EXPECT_STREQ(queryKernelsName(QueryKernels::kX86_64_V3), "x86-64-v3");
 }

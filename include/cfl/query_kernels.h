@@ -3,7 +3,7 @@
 /// Which compiled build of the query's hot code answers the queries of cfl_query.h.
 ///
 /// The search behind computeDistance, computeCollision and bruteForceDistance, with the triangle distance
-/// kernels it runs, is compiled twice where the compiler allows it (GCC 11 or later on x86-64, when the
+/// kernels it runs, is compiled twice where the compiler allows it (GCC 12 or later on x86-64, when the
 /// library's own flags do not already target AVX2): for the library's flags (baseline x86-64: SSE2) and for
 /// x86-64-v3 (AVX2, BMI2, ...), whose three-operand VEX instructions save register copies. The first query
 /// picks x86-64-v3 when the CPU runs it. Neither build fuses multiplies into adds (the library is compiled

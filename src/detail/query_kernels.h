@@ -47,9 +47,9 @@
 #define CFL_ALWAYS_INLINE
 #endif
 
-// Whether this library holds the x86-64-v3 build: GCC 11 or later (the first to know the target
-// "arch=x86-64-v3") on x86-64, unless the library's own flags already target AVX2.
-#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 11 && defined(__x86_64__) && !defined(__AVX2__)
+// Whether this library holds the x86-64-v3 build: GCC 12 or later (the target "arch=x86-64-v3" and
+// __builtin_cpu_supports("x86-64-v3")) on x86-64, unless the library's own flags already target AVX2.
+#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 12 && defined(__x86_64__) && !defined(__AVX2__)
 #define CFL_X86_64_V3_KERNELS 1
 #else
 #define CFL_X86_64_V3_KERNELS 0

@@ -293,6 +293,21 @@ TEST_F(ToolCliTest, SmallBenchRunPassesItsExactnessCheckAndWritesJson) {
   EXPECT_TRUE(contains(r.out, "OBBRSS/CFL")) << r.out;
 }
 
+// CFL_KERNELS picks the query's build (cfl/query_kernels.h): the run says which one answered, and a value
+// that names no build stops the run before any work, naming the variable and what it accepts.
+TEST_F(ToolCliTest, BenchSaysWhichQueryKernelsRanAndRejectsAnUnknownCflKernels) {
+  const std::string mesh = writeMesh("torus.obj", test::makeTorus(1.0, 0.35, 16, 8));
+  const std::vector<std::string> args = {"bench", mesh, "--queries", "2", "--bands", "0.05", "--repeats", "1",
+                                         "--resolution", "10"};
+  const ToolRun generic = run(args, "", "CFL_KERNELS=generic");
+  ASSERT_EQ(generic.status, 0) << generic.err;
+  EXPECT_TRUE(contains(generic.out, "CFL's query kernels: generic")) << generic.out;
+  const ToolRun unknown = run(args, "", "CFL_KERNELS=avx512");
+  EXPECT_EQ(unknown.status, 1) << unknown.out;
+  EXPECT_TRUE(contains(unknown.err, "CFL_KERNELS=avx512: expected auto, generic or x86-64-v3")) << unknown.err;
+  EXPECT_FALSE(contains(unknown.err, "building")) << "the run should fail before building: " << unknown.err;
+}
+
 // Blocked order times the same queries as interleaved, only in another sequence: the answers are checked the
 // same way, and the run says which order it used.
 TEST_F(ToolCliTest, BlockedBenchRunPassesItsExactnessCheckAndSaysItsOrder) {

@@ -15,6 +15,7 @@
 
 #include "cfl/cfl_query.h"
 #include "cfl/mesh_io.h"
+#include "cfl/query_kernels.h"
 #include "fcl_baseline.h"
 #include "pose_generator.h"
 #include "tool_support.h"
@@ -144,6 +145,7 @@ int main(int argc, char** argv) {
     benchmark::AddCustomContext("mesh_a", path_a + " (" + std::to_string(scene.cfl_a.geometry.mesh.triangles.size()) + " triangles)");
     benchmark::AddCustomContext("mesh_b", path_b + " (" + std::to_string(scene.model_b.mesh.triangles.size()) + " triangles)");
     benchmark::AddCustomContext("cfl_resolution", std::to_string(scene.cfl_a.statistics.resolution));
+    benchmark::AddCustomContext("cfl_query_kernels", cfl::queryKernelsName(cfl::activeQueryKernels()));
 
     for (double value : cfl::bench::defaultBands()) {
       Band band;

@@ -41,8 +41,12 @@ std::string difference(const DistanceResult& x, const DistanceResult& y) {
   std::ostringstream out;
   out.precision(17);
   if (!sameBits(x.distance, y.distance)) out << " distance " << x.distance << " vs " << y.distance;
-  if (!sameBits(x.point_a, y.point_a)) out << " point_a (" << x.point_a.transpose() << ") vs (" << y.point_a.transpose() << ")";
-  if (!sameBits(x.point_b, y.point_b)) out << " point_b (" << x.point_b.transpose() << ") vs (" << y.point_b.transpose() << ")";
+  if (!sameBits(x.point_a, y.point_a)) {
+    out << " point_a (" << x.point_a.transpose() << ") vs (" << y.point_a.transpose() << ")";
+  }
+  if (!sameBits(x.point_b, y.point_b)) {
+    out << " point_b (" << x.point_b.transpose() << ") vs (" << y.point_b.transpose() << ")";
+  }
   if (x.triangle_a != y.triangle_a || x.triangle_b != y.triangle_b) {
     out << " pair (" << x.triangle_a << ", " << x.triangle_b << ") vs (" << y.triangle_a << ", " << y.triangle_b << ")";
   }
@@ -93,7 +97,9 @@ Pose makePose(const Shape& a, const Shape& b, double fraction, test::Rng& rng) {
   const double diagonal = a.model.bounds.diagonal();
   // Placement only shapes the inputs (every assertion is against brute force or the other build), so it may
   // bisect on the fast query.
-  auto distance = [&](const Eigen::Isometry3d& X_WB) { return computeDistance(a.cfl, pose.X_WA, b.model, X_WB).distance; };
+  auto distance = [&](const Eigen::Isometry3d& X_WB) {
+    return computeDistance(a.cfl, pose.X_WA, b.model, X_WB).distance;
+  };
   const double target = fraction * diagonal;
   pose.X_WB = test::placeAtDistance(distance, pose.X_WA * a.model.bounds.center(), b.model.bounds, target,
                                     std::max(0.05 * target, 1e-3 * diagonal), rng);

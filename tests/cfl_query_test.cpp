@@ -3,6 +3,7 @@
 // library kernel, against the point-mesh reference of test_meshes.
 
 #include "cfl/cfl_query.h"
+#include "cfl/error.h"
 #include "cfl/triangle_distance.h"
 #include "support/test_meshes.h"
 
@@ -552,6 +553,48 @@ TEST(ComputeDistance, WarmStartHintsNeverChangeTheAnswer) {
     }
   }
   EXPECT_EQ(failures.count(), 0);
+}
+
+// A broadphase passes the best distance it holds: a pair that cannot beat it comes back empty, one that can
+// comes back exact. Bounds just above, at and just below the true distance, and far from it both ways.
+TEST(ComputeDistance, UpperBoundFindsExactlyThePairsThatBeatIt) {
+  test::Rng rng(67);
+  Failures failures;
+  for (const PairCase& pair : kPairs) {
+    const Shape& a = shape(pair.a);
+    const Shape& b = shape(pair.b);
+    for (double fraction : {0.0, 0.005, 0.1, 3.0}) {
+      const Pose pose = makePose(a, b, fraction, rng);
+      const DistanceResult truth = bruteForceDistance(a.model, pose.X_WA, b.model, pose.X_WB);
+      for (double bound : {truth.distance * 2 + a.diagonal, truth.distance * (1 + 1e-6) + 1e-12, truth.distance,
+                           truth.distance * 0.5, 0.0}) {
+        for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+          DistanceOptions options;
+          options.mode = mode;
+          options.upper_bound = bound;
+          std::ostringstream label;
+          label << "upper bound " << bound << " (truth " << truth.distance << ")";
+          const DistanceResult r = computeDistance(a.cfl, pose.X_WA, b.model, pose.X_WB, options);
+          // At a bound equal to the distance, rounding may put the pair on either side: both are right.
+          const double slack = 1e-12 * (a.diagonal + b.diagonal);
+          const bool empty =
+              r.distance == std::numeric_limits<double>::infinity() && r.triangle_a == -1 && r.triangle_b == -1;
+          if (!empty) {
+            checkResult(r, truth, a, b, pose, label.str(), failures);
+            if (!(truth.distance < bound + slack)) failures.add(label.str() + ": a pair at or above the bound");
+          } else if (!(truth.distance > bound - slack)) {
+            failures.add(a.name + " vs " + b.name + ", " + label.str() + ": no pair, though one beats the bound");
+          }
+        }
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+  DistanceOptions negative;
+  negative.upper_bound = -1;
+  const Shape& s = shape(kPairs[0].a);
+  EXPECT_THROW(computeDistance(s.cfl, Eigen::Isometry3d::Identity(), s.model, Eigen::Isometry3d::Identity(), negative),
+               Error);
 }
 
 std::string trialLabel(int trial, const char* parameter, double value) {

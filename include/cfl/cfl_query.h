@@ -41,6 +41,11 @@ struct DistanceOptions {
   /// previous result of a moving pair. Ignored when either id is out of range. Never changes the answer.
   int hint_triangle_a = -1;
   int hint_triangle_b = -1;
+  /// Only pairs strictly closer than this are looked for (a length, >= 0). A broadphase that already holds a
+  /// distance D passes D: a pair of models that cannot beat it is dismissed at the cost of the first bounds
+  /// that reach D. When no pair is closer, the result has distance infinity and triangle ids -1; otherwise
+  /// it is the exact answer, as without a bound. The default, infinity, always finds the closest pair.
+  double upper_bound = std::numeric_limits<double>::infinity();
 };
 
 /// Work done by one query (paper Table 2).
@@ -98,8 +103,8 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
 /// query without a cache 1.26x / 1.25x / 1.24x).
 ///
 /// Plain data written by computeDistance: create one per pair of models and pass it to every query of
-/// that pair. Calling with other models, another mode or a non-zero rel_err / abs_err resets it (the
-/// cache then does nothing for that call). Not thread-safe: one cache per thread and pair.
+/// that pair. Calling with other models, another mode, a non-zero rel_err / abs_err or a finite upper_bound
+/// resets it (the cache then does nothing for that call). Not thread-safe: one cache per thread and pair.
 struct DistanceCache {
   /// Queries answered from the certificate, and queries that searched (statistics for benchmarks).
   std::int64_t reused = 0;

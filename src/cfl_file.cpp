@@ -15,6 +15,9 @@
 #include <limits>
 #include <sstream>
 #include <thread>
+#include <type_traits>
+
+#include <zlib.h>
 
 #if defined(__unix__) || defined(__APPLE__)
 #include <unistd.h>
@@ -27,8 +30,8 @@ static_assert(std::numeric_limits<double>::is_iec559 && sizeof(double) == 8,
               "the file stores doubles as IEEE-754 binary64 bit patterns");
 
 // On a little-endian host the file's arrays have the memory layout of the vectors, so they are copied in
-// bulk (about 3x faster to load); elsewhere, or when built with -DCFL_FILE_BULK_COPY=0 (as the sanitizer CI
-// build is, so that both paths are tested), every value goes through the byte-by-byte conversions.
+// bulk; elsewhere, or when built with -DCFL_FILE_BULK_COPY=0 (as the sanitizer CI build is, so that both
+// paths are tested), every value goes through the byte-by-byte conversions.
 #ifndef CFL_FILE_BULK_COPY
 #if defined(__BYTE_ORDER__) && defined(__ORDER_LITTLE_ENDIAN__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__ && \
     (!defined(__FLOAT_WORD_ORDER__) || __FLOAT_WORD_ORDER__ == __ORDER_LITTLE_ENDIAN__)
@@ -50,31 +53,26 @@ constexpr std::uint32_t makeTag(const char (&name)[5]) {
          std::uint32_t(std::uint8_t(name[2])) << 16 | std::uint32_t(std::uint8_t(name[3])) << 24;
 }
 constexpr std::uint32_t kTagMesh = makeTag("MESH");
-constexpr std::uint32_t kTagGrid = makeTag("GRID");
+constexpr std::uint32_t kTagTree = makeTag("TREE");
+constexpr std::uint32_t kTagNodes = makeTag("NODE");
+constexpr std::uint32_t kTagLeaves = makeTag("LEAF");
 constexpr std::uint32_t kTagList = makeTag("LIST");
-constexpr std::uint32_t kTagBounds = makeTag("BNDS");
-constexpr std::uint32_t kTagStatistics = makeTag("STAT");
 constexpr std::uint32_t kTagEntryBounds = makeTag("LBND");
+constexpr std::uint32_t kTagStatistics = makeTag("STAT");
 
-constexpr std::size_t kGridSectionSize = 3 * 8 + 8 + 3 * 4 + 8 + 4;
-constexpr std::size_t kStatisticsSectionSize = 7 * 8;
+// origin, root_size, root_dims, max_depth, padding, flags.
+constexpr std::size_t kTreeSectionSize = 3 * 8 + 8 + 3 * 4 + 4 + 8 + 4;
+// Per leaf in LEAF: its list (u32), lower bound (f32) and eight corner distances (f32).
+constexpr std::size_t kLeafRecordSize = 4 + 4 + 8 * 4;
+// Seven 8-byte figures, the flags and the size of leaves_per_depth; its entries follow.
+constexpr std::size_t kStatisticsFixedSize = 7 * 8 + 4 + 8;
+// RegionTree::forEachLeafInBox keeps its pending cells in a fixed stack sized for this depth.
+constexpr int kMaxTreeDepth = 24;
 
-// Slicing-by-8 tables: table[0] is the classic byte-at-a-time table, table[k][b] the CRC of byte b followed
-// by k zero bytes. Eight bytes per step runs at a few GB/s, so the checksum costs little next to parsing.
-using CrcTables = std::array<std::array<std::uint32_t, 256>, 8>;
-constexpr CrcTables makeCrcTables() {
-  CrcTables tables{};
-  for (std::uint32_t b = 0; b < 256; ++b) {
-    std::uint32_t crc = b;
-    for (int bit = 0; bit < 8; ++bit) crc = (crc & 1u) ? (crc >> 1) ^ 0xEDB88320u : crc >> 1;
-    tables[0][b] = crc;
-  }
-  for (std::uint32_t b = 0; b < 256; ++b) {
-    for (int k = 1; k < 8; ++k) tables[k][b] = (tables[k - 1][b] >> 8) ^ tables[0][tables[k - 1][b] & 0xFFu];
-  }
-  return tables;
-}
-constexpr CrcTables kCrcTables = makeCrcTables();
+using CornerDistances = std::array<float, 8>;
+static_assert(sizeof(float) == 4 && std::numeric_limits<float>::is_iec559,
+              "the file stores floats as IEEE-754 binary32 bit patterns");
+static_assert(sizeof(CornerDistances) == 8 * sizeof(float), "corner distances are copied in bulk as eight floats");
 
 std::uint32_t loadU32(const unsigned char* p) {
   return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
@@ -133,16 +131,15 @@ class Writer {
     std::memcpy(&bits, &value, 8);
     u64(bits);
   }
+  // Integers and floats of 1, 4 or 8 bytes, or blocks of eight floats, each stored as its little-endian bit
+  // pattern.
   template <typename T>
   void array(const std::vector<T>& values) {
-    static_assert(sizeof(T) == 1 || sizeof(T) == 4 || sizeof(T) == 8, "arrays hold bytes, 32-bit integers or doubles");
     if constexpr (kBulkCopy || sizeof(T) == 1) {
       const auto* p = reinterpret_cast<const unsigned char*>(values.data());
       bytes_.insert(bytes_.end(), p, p + sizeof(T) * values.size());
-    } else if constexpr (sizeof(T) == 4) {
-      for (T value : values) u32(static_cast<std::uint32_t>(value));
     } else {
-      for (double value : values) f64(value);
+      for (const T& value : values) element(value);
     }
   }
   void section(std::uint32_t tag, std::uint64_t length) {
@@ -153,6 +150,21 @@ class Writer {
   std::vector<unsigned char>& bytes() { return bytes_; }
 
  private:
+  template <typename T>
+  void element(const T& value) {
+    if constexpr (std::is_same_v<T, CornerDistances>) {
+      for (float distance : value) element(distance);
+    } else if constexpr (sizeof(T) == 4) {
+      std::uint32_t bits;
+      std::memcpy(&bits, &value, 4);
+      u32(bits);
+    } else {
+      static_assert(sizeof(T) == 8, "arrays hold bytes, 32-bit or 64-bit values, or eight floats");
+      std::uint64_t bits;
+      std::memcpy(&bits, &value, 8);
+      u64(bits);
+    }
+  }
   std::vector<unsigned char> bytes_;
 };
 
@@ -176,21 +188,15 @@ class Reader {
     std::memcpy(&value, &bits, 8);
     return value;
   }
-  // Fills `values` (already sized by a checked count) from the next sizeof(T) * size() bytes.
+  // Fills `values` (already sized by a checked count) from the next sizeof(T) * size() bytes, the inverse
+  // of Writer::array.
   template <typename T>
   void array(std::vector<T>& values, const char* what) {
-    static_assert(sizeof(T) == 1 || sizeof(T) == 4 || sizeof(T) == 8, "arrays hold bytes, 32-bit integers or doubles");
     const unsigned char* p = take(sizeof(T) * values.size(), what);
     if constexpr (kBulkCopy || sizeof(T) == 1) {
       if (!values.empty()) std::memcpy(values.data(), p, sizeof(T) * values.size());
-    } else if constexpr (sizeof(T) == 4) {
-      for (T& value : values) value = static_cast<T>(loadU32(p)), p += 4;
     } else {
-      for (double& value : values) {
-        const std::uint64_t bits = loadU64(p);
-        std::memcpy(&value, &bits, 8);
-        p += 8;
-      }
+      for (T& value : values) p = element(value, p);
     }
   }
   const unsigned char* take(std::size_t count, const char* what) {
@@ -215,70 +221,165 @@ class Reader {
   [[noreturn]] void fail(const std::string& message) const { throw Error(context_ + ": " + message); }
 
  private:
+  template <typename T>
+  static const unsigned char* element(T& value, const unsigned char* p) {
+    if constexpr (std::is_same_v<T, CornerDistances>) {
+      for (float& distance : value) p = element(distance, p);
+      return p;
+    } else if constexpr (sizeof(T) == 4) {
+      const std::uint32_t bits = loadU32(p);
+      std::memcpy(&value, &bits, 4);
+      return p + 4;
+    } else {
+      static_assert(sizeof(T) == 8, "arrays hold bytes, 32-bit or 64-bit values, or eight floats");
+      const std::uint64_t bits = loadU64(p);
+      std::memcpy(&value, &bits, 8);
+      return p + 8;
+    }
+  }
+
   const unsigned char* data_;
   std::size_t size_;
   std::size_t position_ = 0;
   const std::string& context_;
 };
 
-std::string finiteError(const char* what, std::size_t index, double value) {
-  std::ostringstream message;
-  message << what << " " << index << " is " << value;
-  return message.str();
+std::string numberText(double value) {
+  std::ostringstream text;
+  text.precision(17);
+  text << value;
+  return text.str();
 }
 
-// Checks the invariants of CflModel that the query relies on to stay in bounds and exact. Shared by the
-// writer (so a broken model is never written) and the loader (so a broken file is never used). The mesh
-// itself is checked by validateMesh.
+std::string dimsText(const std::array<int, 3>& dims) {
+  return std::to_string(dims[0]) + " x " + std::to_string(dims[1]) + " x " + std::to_string(dims[2]);
+}
+
+// Checks the invariants of CflModel that the query relies on to stay in bounds, to terminate and to be
+// exact. Shared by the writer (so a broken model is never written) and the loader (so a broken file is never
+// used). The mesh itself is checked by validateMesh. Everything is checked before anything that depends on
+// it is read: the root grid before the nodes, the nodes before the leaves, the offsets before the lists.
 void validateModelStructure(const CflModel& model, const std::string& context) {
   const auto fail = [&](const std::string& message) { throw Error(context + ": " + message); };
-  const VoxelGrid& grid = model.grid;
+  const RegionTree& tree = model.regions;
   const std::size_t triangle_count = model.geometry.mesh.triangles.size();
 
-  if (!grid.origin.allFinite()) fail("grid origin is not finite");
-  if (!std::isfinite(grid.voxel_size) || !(grid.voxel_size > 0)) {
-    fail("grid voxel size is " + std::to_string(grid.voxel_size) + ", not a finite positive length");
+  // The root grid.
+  if (!tree.origin.allFinite()) fail("regions origin is not finite");
+  if (!std::isfinite(tree.root_size) || !(tree.root_size > 0)) {
+    fail("regions root_size is " + numberText(tree.root_size) + ", not a finite positive length");
   }
   for (int axis = 0; axis < 3; ++axis) {
-    // INT_MAX is out too: VoxelGrid::cornerCount adds 1 to each dim in int arithmetic.
-    if (grid.dims[axis] < 1 || grid.dims[axis] == std::numeric_limits<int>::max()) {
-      fail("grid dims[" + std::to_string(axis) + "] is " + std::to_string(grid.dims[axis]) + ", must be >= 1 and < 2^31 - 1");
+    if (tree.root_dims[axis] < 1) {
+      fail("regions root_dims[" + std::to_string(axis) + "] is " + std::to_string(tree.root_dims[axis]) + ", must be >= 1");
     }
   }
-  // The dims must multiply to voxel_list's size, checked by division so that absurd dims (three ints
-  // multiply to 2^93) never overflow; only then are VoxelGrid's own count functions safe to call.
-  const std::uint64_t listed = model.voxel_list.size();
-  const std::uint64_t d0 = std::uint64_t(grid.dims[0]), d1 = std::uint64_t(grid.dims[1]), d2 = std::uint64_t(grid.dims[2]);
-  if (listed > std::numeric_limits<std::uint32_t>::max() || d0 > listed || d1 > listed / d0 ||
-      d2 > listed / (d0 * d1) || d0 * d1 * d2 != listed) {
-    fail("grid of " + std::to_string(grid.dims[0]) + " x " + std::to_string(grid.dims[1]) + " x " +
-         std::to_string(grid.dims[2]) + " voxels, but voxel_list has " + std::to_string(listed) + " entries");
+  if (!tree.bounds().max.allFinite()) fail("regions far corner is not finite (root_size times root_dims overflows)");
+  if (tree.max_depth < 0 || tree.max_depth > kMaxTreeDepth) {
+    fail("regions max_depth is " + std::to_string(tree.max_depth) + ", must be in [0, " + std::to_string(kMaxTreeDepth) + "]");
   }
-  const std::int64_t voxel_count = grid.voxelCount();
-  if (!grid.bounds().max.allFinite()) fail("grid far corner is not finite (voxel size times dims overflows)");
   if (!std::isfinite(model.padding) || model.padding < 1.0) {
-    fail("padding is " + std::to_string(model.padding) + ", must be a finite factor >= 1");
+    fail("padding is " + numberText(model.padding) + ", must be a finite factor >= 1");
   }
 
-  if (static_cast<std::int64_t>(model.voxel_lower_bound.size()) != voxel_count) {
-    fail("grid has " + std::to_string(voxel_count) + " voxels, but voxel_lower_bound has " +
-         std::to_string(model.voxel_lower_bound.size()) + " entries");
+  // The nodes. Node and leaf indices are 31-bit (the top bit marks a leaf), which also keeps `v + 8` below.
+  const std::uint64_t node_count = tree.nodes.size();
+  const std::uint64_t leaf_count = tree.leaf_list.size();
+  if (node_count >= RegionTree::kLeafBit) fail(std::to_string(node_count) + " nodes, more than 31-bit indices can name");
+  if (leaf_count >= RegionTree::kLeafBit) fail(std::to_string(leaf_count) + " leaves, more than 31-bit indices can name");
+  // The root cells come first among the nodes, so there must be at least as many nodes as root cells,
+  // checked by division so that absurd dims (three ints multiply to 2^93) never overflow; only then is
+  // rootCount() safe to call.
+  const std::uint64_t d0 = std::uint64_t(tree.root_dims[0]), d1 = std::uint64_t(tree.root_dims[1]),
+                      d2 = std::uint64_t(tree.root_dims[2]);
+  if (d0 > node_count || d1 > node_count / d0 || d2 > node_count / (d0 * d1)) {
+    fail("regions root grid of " + dimsText(tree.root_dims) + " cells, but only " + std::to_string(node_count) +
+         " nodes");
   }
-  if (static_cast<std::int64_t>(model.corner_distance.size()) != grid.cornerCount()) {
-    fail("grid has " + std::to_string(grid.cornerCount()) + " corners, but corner_distance has " +
-         std::to_string(model.corner_distance.size()) + " entries");
+  const std::uint64_t root_count = static_cast<std::uint64_t>(tree.rootCount());
+
+  if (tree.leaf_lower_bound.size() != leaf_count || tree.leaf_corner_distance.size() != leaf_count) {
+    fail("leaf arrays disagree: leaf_list has " + std::to_string(leaf_count) + " entries, leaf_lower_bound " +
+         std::to_string(tree.leaf_lower_bound.size()) + ", leaf_corner_distance " +
+         std::to_string(tree.leaf_corner_distance.size()));
   }
 
-  const auto& offsets = model.list_offsets;
+  // One pass in index order: children come after their parent, so by the time node n is reached every node
+  // that may point to it has been seen, and its depth is known. Pointing only forward rules out cycles (a
+  // query walking down the tree always ends); each node being the child of exactly one parent makes it a
+  // forest of the root cells (no walk visits a cell twice, no node is dead weight); the depth limit keeps
+  // forEachLeafInBox's fixed stack in bounds.
+  constexpr std::uint8_t kUnreached = 0xFF;
+  std::vector<std::uint8_t> depth(static_cast<std::size_t>(node_count), kUnreached);
+  std::vector<std::uint32_t> parent(static_cast<std::size_t>(node_count), 0);
+  std::fill(depth.begin(), depth.begin() + static_cast<std::ptrdiff_t>(root_count), std::uint8_t(0));
+  std::vector<bool> leaf_seen(static_cast<std::size_t>(leaf_count), false);
+  std::vector<std::int64_t> leaves_per_depth;
+  for (std::uint64_t n = 0; n < node_count; ++n) {
+    const std::uint32_t value = tree.nodes[n];
+    if (depth[n] == kUnreached) {
+      fail("node " + std::to_string(n) + " is not a root cell and no node points to it as a child");
+    }
+    const int d = depth[n];
+    if (value & RegionTree::kLeafBit) {
+      const std::uint32_t leaf = value & ~RegionTree::kLeafBit;
+      if (leaf >= leaf_count) {
+        fail("node " + std::to_string(n) + " is leaf " + std::to_string(leaf) + ", out of range [0, " +
+             std::to_string(leaf_count) + ")");
+      }
+      if (leaf_seen[leaf]) fail("leaf " + std::to_string(leaf) + " is referenced twice (again by node " + std::to_string(n) + ")");
+      leaf_seen[leaf] = true;
+      if (leaves_per_depth.size() <= std::size_t(d)) leaves_per_depth.resize(d + 1, 0);
+      ++leaves_per_depth[d];
+      continue;
+    }
+    if (value <= n) {
+      fail("node " + std::to_string(n) + " points to children at node " + std::to_string(value) +
+           ", not after itself (children follow their parent; a node pointing to itself or back would loop)");
+    }
+    if (value < root_count) {
+      fail("node " + std::to_string(n) + " points to children at node " + std::to_string(value) + ", a root cell (there are " +
+           std::to_string(root_count) + ")");
+    }
+    if (std::uint64_t(value) + 8 > node_count) {
+      fail("node " + std::to_string(n) + " points to children at nodes " + std::to_string(value) + " to " +
+           std::to_string(std::uint64_t(value) + 7) + ", past the " + std::to_string(node_count) + " nodes");
+    }
+    if (d + 1 > tree.max_depth) {
+      fail("node " + std::to_string(n) + " at depth " + std::to_string(d) + " has children at depth " +
+           std::to_string(d + 1) + ", deeper than max_depth " + std::to_string(tree.max_depth));
+    }
+    for (std::uint32_t child = value; child < value + 8; ++child) {
+      if (depth[child] != kUnreached) {
+        fail("node " + std::to_string(child) + " is the child of two parents, nodes " + std::to_string(parent[child]) +
+             " and " + std::to_string(n) + " (a child block is shared)");
+      }
+      depth[child] = static_cast<std::uint8_t>(d + 1);
+      parent[child] = static_cast<std::uint32_t>(n);
+    }
+  }
+  for (std::uint64_t leaf = 0; leaf < leaf_count; ++leaf) {
+    if (!leaf_seen[leaf]) fail("leaf " + std::to_string(leaf) + " is referenced by no node");
+  }
+  // With every node reached and every leaf used once, leaves_per_depth is non-empty when there are leaves;
+  // max_depth is documented as the deepest leaf's depth, which the query sizes its margins by.
+  const int deepest = static_cast<int>(leaves_per_depth.size()) - 1;
+  if (tree.max_depth != deepest) {
+    fail("regions max_depth is " + std::to_string(tree.max_depth) + ", but the deepest leaf is at depth " +
+         std::to_string(deepest));
+  }
+
+  // The lists.
+  const auto& offsets = tree.list_offsets;
   if (offsets.size() < 2) fail("list_offsets has " + std::to_string(offsets.size()) + " entries, needs at least 2");
   if (offsets.front() != 0) fail("list_offsets[0] is " + std::to_string(offsets.front()) + ", must be 0");
-  if (offsets.back() != model.list_triangles.size()) {
+  if (offsets.back() != tree.list_triangles.size()) {
     fail("last list offset is " + std::to_string(offsets.back()) + ", but list_triangles has " +
-         std::to_string(model.list_triangles.size()) + " entries");
+         std::to_string(tree.list_triangles.size()) + " entries");
   }
-  if (model.list_entry_bounds.size() != model.list_triangles.size()) {
-    fail("list_triangles has " + std::to_string(model.list_triangles.size()) + " entries, but list_entry_bounds has " +
-         std::to_string(model.list_entry_bounds.size()));
+  if (tree.list_entry_bounds.size() != tree.list_triangles.size()) {
+    fail("list_triangles has " + std::to_string(tree.list_triangles.size()) + " entries, but list_entry_bounds has " +
+         std::to_string(tree.list_entry_bounds.size()));
   }
   const std::size_t list_count = offsets.size() - 1;
   // Offsets first, all of them: a list's contents are only meaningful once its bounds are.
@@ -294,8 +395,8 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
     std::int64_t previous = -1;
     int previous_bound = 0;
     for (std::uint32_t i = begin; i < end; ++i) {
-      const std::int32_t id = model.list_triangles[i];
-      const int bound = model.list_entry_bounds[i];
+      const std::int32_t id = tree.list_triangles[i];
+      const int bound = tree.list_entry_bounds[i];
       if (id < 0 || static_cast<std::size_t>(id) >= triangle_count) {
         fail("list " + std::to_string(list) + " holds triangle id " + std::to_string(id) + ", out of range [0, " +
              std::to_string(triangle_count) + ")");
@@ -309,28 +410,42 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
       previous_bound = bound;
     }
   }
-  for (std::size_t v = 0; v < model.voxel_list.size(); ++v) {
-    if (model.voxel_list[v] >= list_count) {
-      fail("voxel " + std::to_string(v) + " refers to list " + std::to_string(model.voxel_list[v]) +
+
+  // The leaves.
+  for (std::size_t leaf = 0; leaf < leaf_count; ++leaf) {
+    if (tree.leaf_list[leaf] >= list_count) {
+      fail("leaf_list of leaf " + std::to_string(leaf) + " is list " + std::to_string(tree.leaf_list[leaf]) +
            ", out of range [0, " + std::to_string(list_count) + ")");
     }
-  }
-  for (std::size_t v = 0; v < model.voxel_lower_bound.size(); ++v) {
-    const double value = model.voxel_lower_bound[v];
-    if (!std::isfinite(value) || value < 0) fail(finiteError("voxel_lower_bound of voxel", v, value) + ", must be finite and >= 0");
-  }
-  for (std::size_t c = 0; c < model.corner_distance.size(); ++c) {
-    const double value = model.corner_distance[c];
-    if (!std::isfinite(value) || value < 0) fail(finiteError("corner_distance of corner", c, value) + ", must be finite and >= 0");
+    const float lower = tree.leaf_lower_bound[leaf];
+    if (!std::isfinite(lower) || lower < 0) {
+      fail("leaf_lower_bound of leaf " + std::to_string(leaf) + " is " + numberText(lower) + ", must be finite and >= 0");
+    }
+    for (int corner = 0; corner < 8; ++corner) {
+      const float distance = tree.leaf_corner_distance[leaf][corner];
+      if (!std::isfinite(distance) || distance < 0) {
+        fail("leaf_corner_distance of leaf " + std::to_string(leaf) + " corner " + std::to_string(corner) + " is " +
+             numberText(distance) + ", must be finite and >= 0");
+      }
+    }
   }
 
   const BuildStatistics& s = model.statistics;
-  if (s.voxel_count != voxel_count) {
-    fail("statistics say " + std::to_string(s.voxel_count) + " voxels, the grid has " + std::to_string(voxel_count));
+  if (s.voxel_count != std::int64_t(leaf_count)) {
+    fail("statistics say " + std::to_string(s.voxel_count) + " leaves, the regions have " + std::to_string(leaf_count));
   }
-  if (s.resolution < 1 || s.longest_list < 0 || s.distinct_lists < 0 || s.memory_bytes < 0 ||
-      !std::isfinite(s.average_list_length) || s.average_list_length < 0 || !std::isfinite(s.build_seconds) ||
-      s.build_seconds < 0) {
+  if (s.leaves_per_depth != leaves_per_depth) {
+    std::string said, found;
+    for (std::int64_t count : s.leaves_per_depth) said += (said.empty() ? "" : " ") + std::to_string(count);
+    for (std::int64_t count : leaves_per_depth) found += (found.empty() ? "" : " ") + std::to_string(count);
+    fail("statistics say leaves per depth [" + said + "], the regions have [" + found + "]");
+  }
+  if (s.distinct_lists != std::int64_t(list_count)) {
+    fail("statistics say " + std::to_string(s.distinct_lists) + " distinct lists, the regions have " +
+         std::to_string(list_count));
+  }
+  if (s.resolution < 1 || s.longest_list < 0 || s.memory_bytes < 0 || !std::isfinite(s.average_list_length) ||
+      s.average_list_length < 0 || !std::isfinite(s.build_seconds) || s.build_seconds < 0) {
     fail("statistics hold a negative or non-finite figure");
   }
 }
@@ -340,18 +455,16 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
 namespace detail {
 
 std::uint32_t crc32(const unsigned char* data, std::size_t size) {
-  std::uint32_t crc = 0xFFFFFFFFu;
-  const auto& t = kCrcTables;
-  while (size >= 8) {
-    const std::uint32_t low = loadU32(data) ^ crc;
-    const std::uint32_t high = loadU32(data + 4);
-    crc = t[7][low & 0xFF] ^ t[6][(low >> 8) & 0xFF] ^ t[5][(low >> 16) & 0xFF] ^ t[4][low >> 24] ^
-          t[3][high & 0xFF] ^ t[2][(high >> 8) & 0xFF] ^ t[1][(high >> 16) & 0xFF] ^ t[0][high >> 24];
-    data += 8;
-    size -= 8;
+  // zlib takes lengths as uInt (32 bits), so a larger buffer goes in slices.
+  uLong crc = ::crc32(0L, Z_NULL, 0);
+  constexpr std::size_t kSlice = std::size_t(1) << 30;
+  while (size > 0) {
+    const std::size_t slice = std::min(size, kSlice);
+    crc = ::crc32(crc, data, static_cast<uInt>(slice));
+    data += slice;
+    size -= slice;
   }
-  while (size-- > 0) crc = (crc >> 8) ^ t[0][(crc ^ *data++) & 0xFF];
-  return crc ^ 0xFFFFFFFFu;
+  return static_cast<std::uint32_t>(crc);
 }
 
 void resealCflBuffer(unsigned char* data, std::size_t size) {
@@ -366,14 +479,17 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
   validateMesh(model.geometry.mesh);
   validateModelStructure(model, "cannot save CFL model");
   const TriangleMesh& mesh = model.geometry.mesh;
+  const RegionTree& tree = model.regions;
+  const BuildStatistics& s = model.statistics;
 
   const std::uint64_t mesh_size = 16 + 24 * mesh.vertices.size() + 12 * mesh.triangles.size();
-  const std::uint64_t list_size =
-      24 + 4 * (model.voxel_list.size() + model.list_offsets.size() + model.list_triangles.size());
-  const std::uint64_t bounds_size = 16 + 8 * (model.voxel_lower_bound.size() + model.corner_distance.size());
-  const std::uint64_t entry_bounds_size = 8 + model.list_entry_bounds.size();
-  const std::uint64_t payload_size = 6 * kSectionHeaderSize + mesh_size + kGridSectionSize + list_size +
-                                     entry_bounds_size + bounds_size + kStatisticsSectionSize;
+  const std::uint64_t node_size = 8 + 4 * tree.nodes.size();
+  const std::uint64_t leaf_size = 8 + kLeafRecordSize * tree.leaf_list.size();
+  const std::uint64_t list_size = 16 + 4 * (tree.list_offsets.size() + tree.list_triangles.size());
+  const std::uint64_t entry_bounds_size = 8 + tree.list_entry_bounds.size();
+  const std::uint64_t statistics_size = kStatisticsFixedSize + 8 * s.leaves_per_depth.size();
+  const std::uint64_t payload_size = 7 * kSectionHeaderSize + mesh_size + kTreeSectionSize + node_size + leaf_size +
+                                     list_size + entry_bounds_size + statistics_size;
 
   Writer out(kHeaderSize + payload_size);
   auto& bytes = out.bytes();
@@ -394,33 +510,35 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
     for (int index : triangle) out.i32(index);
   }
 
-  out.section(kTagGrid, kGridSectionSize);
-  for (int axis = 0; axis < 3; ++axis) out.f64(model.grid.origin[axis]);
-  out.f64(model.grid.voxel_size);
-  for (int axis = 0; axis < 3; ++axis) out.i32(model.grid.dims[axis]);
+  out.section(kTagTree, kTreeSectionSize);
+  for (int axis = 0; axis < 3; ++axis) out.f64(tree.origin[axis]);
+  out.f64(tree.root_size);
+  for (int axis = 0; axis < 3; ++axis) out.i32(tree.root_dims[axis]);
+  out.i32(tree.max_depth);
   out.f64(model.padding);
   out.u32(model.topology_culling ? 1u : 0u);
 
+  out.section(kTagNodes, node_size);
+  out.u64(tree.nodes.size());
+  out.array(tree.nodes);
+
+  out.section(kTagLeaves, leaf_size);
+  out.u64(tree.leaf_list.size());
+  out.array(tree.leaf_list);
+  out.array(tree.leaf_lower_bound);
+  out.array(tree.leaf_corner_distance);
+
   out.section(kTagList, list_size);
-  out.u64(model.voxel_list.size());
-  out.u64(model.list_offsets.size());
-  out.u64(model.list_triangles.size());
-  out.array(model.voxel_list);
-  out.array(model.list_offsets);
-  out.array(model.list_triangles);
+  out.u64(tree.list_offsets.size());
+  out.u64(tree.list_triangles.size());
+  out.array(tree.list_offsets);
+  out.array(tree.list_triangles);
 
   out.section(kTagEntryBounds, entry_bounds_size);
-  out.u64(model.list_entry_bounds.size());
-  out.array(model.list_entry_bounds);
+  out.u64(tree.list_entry_bounds.size());
+  out.array(tree.list_entry_bounds);
 
-  out.section(kTagBounds, bounds_size);
-  out.u64(model.voxel_lower_bound.size());
-  out.u64(model.corner_distance.size());
-  out.array(model.voxel_lower_bound);
-  out.array(model.corner_distance);
-
-  const BuildStatistics& s = model.statistics;
-  out.section(kTagStatistics, kStatisticsSectionSize);
+  out.section(kTagStatistics, statistics_size);
   out.i64(s.resolution);
   out.i64(s.voxel_count);
   out.f64(s.average_list_length);
@@ -428,6 +546,9 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
   out.i64(s.distinct_lists);
   out.i64(s.memory_bytes);
   out.f64(s.build_seconds);
+  out.u32(s.coarsened ? 1u : 0u);
+  out.u64(s.leaves_per_depth.size());
+  out.array(s.leaves_per_depth);
 
   if (bytes.size() != kHeaderSize + payload_size) throw std::logic_error("serializeCflModel: size bookkeeping is off");
   detail::resealCflBuffer(bytes.data(), bytes.size());
@@ -442,8 +563,9 @@ namespace {
 std::uint64_t checkHeader(const unsigned char* data, std::size_t available, std::uint64_t total_size,
                           const std::string& name) {
   const auto fail = [&](const std::string& message) { throw Error(name + ": " + message); };
-  // In the order that gives the most useful message: another kind of file first, then a file from a foreign
-  // writer or a later version (whose header may differ past this point), then corruption.
+  // In the order that gives the most useful message: another kind of file first, then a file from an
+  // earlier cfl, a foreign writer or a later version (whose header may differ past this point), then
+  // corruption.
   if (available < kMagic.size() || std::memcmp(data, kMagic.data(), kMagic.size()) != 0) {
     fail("not a CFL model file (first bytes: " + hexBytes(data, std::min<std::size_t>(available, 8)) +
          "; expected " + hexBytes(kMagic.data(), kMagic.size()) + ")");
@@ -458,8 +580,13 @@ std::uint64_t checkHeader(const unsigned char* data, std::size_t available, std:
     fail("bad endianness marker (bytes " + hexBytes(data + 8, 4) + ", expected 04 03 02 01)");
   }
   const std::uint32_t version = loadU32(data + 12);
-  if (version != 1 && version != kCflFileVersion) {
-    fail("format version " + std::to_string(version) + " is not supported (this library reads versions 1 to " +
+  // Versions 1 and 2 stored a uniform grid, which the regions no longer are; the build is the only way
+  // from one to the other, so no loader for them is kept.
+  if (version == 1 || version == 2) {
+    fail("a version-" + std::to_string(version) + " CFL file (uniform grid) from an earlier cfl: rebuild it with `cfl build`");
+  }
+  if (version != kCflFileVersion) {
+    fail("format version " + std::to_string(version) + " is not supported (this library reads version " +
          std::to_string(kCflFileVersion) + ")");
   }
   const std::uint32_t header_crc = detail::crc32(data, 28);
@@ -493,10 +620,10 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
   }
 
   CflModel model;
+  RegionTree& tree = model.regions;
   TriangleMesh mesh;
-  bool seen_mesh = false, seen_grid = false, seen_list = false, seen_bounds = false, seen_statistics = false,
-       seen_entry_bounds = false;
-  const std::uint32_t version = loadU32(data + 12);
+  bool seen_mesh = false, seen_tree = false, seen_nodes = false, seen_leaves = false, seen_list = false,
+       seen_entry_bounds = false, seen_statistics = false;
   Reader payload(data + kHeaderSize, payload_size, name);
   while (payload.remaining() > 0) {
     const std::size_t section_offset = kHeaderSize + payload.position();
@@ -531,51 +658,45 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
       for (auto& triangle : mesh.triangles) {
         for (int& index : triangle) index = in.i32("triangle");
       }
-    } else if (tag == kTagGrid) {
-      once(seen_grid);
-      for (int axis = 0; axis < 3; ++axis) model.grid.origin[axis] = in.f64("grid origin");
-      model.grid.voxel_size = in.f64("voxel size");
-      for (int axis = 0; axis < 3; ++axis) model.grid.dims[axis] = in.i32("grid dims");
+    } else if (tag == kTagTree) {
+      once(seen_tree);
+      for (int axis = 0; axis < 3; ++axis) tree.origin[axis] = in.f64("origin");
+      tree.root_size = in.f64("root_size");
+      for (int axis = 0; axis < 3; ++axis) tree.root_dims[axis] = in.i32("root_dims");
+      tree.max_depth = in.i32("max_depth");
       model.padding = in.f64("padding");
       const std::uint32_t flags = in.u32("flags");
       if (flags > 1u) in.fail("unknown flags " + hexU32(flags));
       model.topology_culling = (flags & 1u) != 0;
+    } else if (tag == kTagNodes) {
+      once(seen_nodes);
+      tree.nodes.resize(in.count(4, "node count"));
+      in.array(tree.nodes, "nodes");
+    } else if (tag == kTagLeaves) {
+      once(seen_leaves);
+      const std::size_t leaf_count = in.count(kLeafRecordSize, "leaf count");
+      tree.leaf_list.resize(leaf_count);
+      in.array(tree.leaf_list, "leaf_list");
+      tree.leaf_lower_bound.resize(leaf_count);
+      in.array(tree.leaf_lower_bound, "leaf_lower_bound");
+      tree.leaf_corner_distance.resize(leaf_count);
+      in.array(tree.leaf_corner_distance, "leaf_corner_distance");
     } else if (tag == kTagList) {
       once(seen_list);
-      const std::size_t voxel_count = in.count(4, "voxel_list size");
       const std::size_t offset_count = in.count(4, "list_offsets size");
       const std::size_t id_count = in.count(4, "list_triangles size");
-      if (in.remaining() / 4 < voxel_count || in.remaining() / 4 - voxel_count < offset_count ||
-          in.remaining() / 4 - voxel_count - offset_count < id_count) {
-        in.fail("array sizes " + std::to_string(voxel_count) + " + " + std::to_string(offset_count) + " + " +
-                std::to_string(id_count) + " do not fit in the section");
-      }
-      model.voxel_list.resize(voxel_count);
-      in.array(model.voxel_list, "voxel_list");
-      model.list_offsets.resize(offset_count);
-      in.array(model.list_offsets, "list_offsets");
-      model.list_triangles.resize(id_count);
-      in.array(model.list_triangles, "list_triangles");
-    } else if (tag == kTagEntryBounds && version >= 2) {
-      once(seen_entry_bounds);
-      const std::size_t entry_count = in.count(1, "list_entry_bounds size");
-      if (in.remaining() < entry_count) {
-        in.fail("array size " + std::to_string(entry_count) + " does not fit in the section");
-      }
-      model.list_entry_bounds.resize(entry_count);
-      in.array(model.list_entry_bounds, "list_entry_bounds");
-    } else if (tag == kTagBounds) {
-      once(seen_bounds);
-      const std::size_t voxel_count = in.count(8, "voxel_lower_bound size");
-      const std::size_t corner_count = in.count(8, "corner_distance size");
-      if (in.remaining() / 8 < voxel_count || in.remaining() / 8 - voxel_count < corner_count) {
-        in.fail("array sizes " + std::to_string(voxel_count) + " + " + std::to_string(corner_count) +
+      if (in.remaining() / 4 < offset_count || in.remaining() / 4 - offset_count < id_count) {
+        in.fail("array sizes " + std::to_string(offset_count) + " + " + std::to_string(id_count) +
                 " do not fit in the section");
       }
-      model.voxel_lower_bound.resize(voxel_count);
-      in.array(model.voxel_lower_bound, "voxel_lower_bound");
-      model.corner_distance.resize(corner_count);
-      in.array(model.corner_distance, "corner_distance");
+      tree.list_offsets.resize(offset_count);
+      in.array(tree.list_offsets, "list_offsets");
+      tree.list_triangles.resize(id_count);
+      in.array(tree.list_triangles, "list_triangles");
+    } else if (tag == kTagEntryBounds) {
+      once(seen_entry_bounds);
+      tree.list_entry_bounds.resize(in.count(1, "list_entry_bounds size"));
+      in.array(tree.list_entry_bounds, "list_entry_bounds");
     } else if (tag == kTagStatistics) {
       once(seen_statistics);
       BuildStatistics& s = model.statistics;
@@ -588,17 +709,19 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
       s.distinct_lists = in.i64("distinct lists");
       s.memory_bytes = in.i64("memory bytes");
       s.build_seconds = in.f64("build seconds");
+      const std::uint32_t flags = in.u32("statistics flags");
+      if (flags > 1u) in.fail("unknown statistics flags " + hexU32(flags));
+      s.coarsened = (flags & 1u) != 0;
+      s.leaves_per_depth.resize(in.count(8, "leaves_per_depth size"));
+      in.array(s.leaves_per_depth, "leaves_per_depth");
     } else {
       continue;  // A section added by a later writer of the same version: not needed to answer queries.
     }
     if (in.remaining() != 0) in.fail(std::to_string(in.remaining()) + " unexpected bytes at the end of the section");
   }
-  const char* missing = !seen_mesh ? "MESH" : !seen_grid ? "GRID" : !seen_list ? "LIST" : !seen_bounds ? "BNDS"
-                        : !seen_statistics ? "STAT" : nullptr;
+  const char* missing = !seen_mesh ? "MESH" : !seen_tree ? "TREE" : !seen_nodes ? "NODE" : !seen_leaves ? "LEAF"
+                        : !seen_list ? "LIST" : !seen_entry_bounds ? "LBND" : !seen_statistics ? "STAT" : nullptr;
   if (missing) fail(std::string("required section ") + missing + " is missing");
-  if (version >= 2 && !seen_entry_bounds) fail("required section LBND is missing");
-  // Version 1 lists are sorted by id and carry no bounds: bound 0 for every entry is true and keeps them sorted.
-  if (version == 1) model.list_entry_bounds.assign(model.list_triangles.size(), 0);
 
   try {
     model.geometry = makeMeshModel(std::move(mesh));

@@ -33,7 +33,7 @@ namespace cfl {
 
 /// The version written by this library. It also reads version 1 files (lists without entry bounds,
 /// loaded with every bound 0: correct, only slower to query).
-constexpr std::uint32_t kCflFileVersion = 2;
+constexpr std::uint32_t kCflFileVersion = 3;
 
 /// The model as the bytes of a version-2 file. O(model size); thread-safe (reads `model` only).
 /// Throws cfl::Error when the model breaks an invariant of CflModel (the loader would refuse the result),

@@ -45,7 +45,7 @@ void exercise(const unsigned char* data, std::size_t size) {
   // are queried at the origin only: the query rightly refuses a non-finite pose) or puts B beyond
   // kMaxCoordinate from A, which the query refuses with a cfl::Error.
   const Eigen::Vector3d center = 0.5 * model.geometry.bounds.min + 0.5 * model.geometry.bounds.max;
-  const double diagonal = model.grid.bounds().diagonal();
+  const double diagonal = model.regions.bounds().diagonal();
   for (cfl::QueryMode mode : {cfl::QueryMode::kHierarchical, cfl::QueryMode::kPaper}) {
     cfl::DistanceOptions options;
     options.mode = mode;

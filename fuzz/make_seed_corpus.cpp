@@ -6,6 +6,7 @@
 #include "cfl/cfl_file.h"
 #include "cfl/cfl_model.h"
 
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -37,6 +38,27 @@ cfl::TriangleMesh degenerate() {
   return mesh;
 }
 
+cfl::TriangleMesh rod() {
+  // 34 small triangles scattered along a thin rod: the adaptive root grid is a single row of cells (a small
+  // file) and the lists are long enough that some cells are refined, so the seed's tree has inner nodes
+  // and leaves at several depths. A fixed linear congruential sequence keeps the corpus reproducible.
+  cfl::TriangleMesh mesh;
+  std::uint32_t state = 12345;
+  const auto next = [&state] {
+    state = state * 1664525u + 1013904223u;
+    return double(state >> 8) / double(1u << 24);
+  };
+  for (int t = 0; t < 34; ++t) {
+    const Eigen::Vector3d center(3 * next(), 0.05 * next(), 0.05 * next());
+    const int v = static_cast<int>(mesh.vertices.size());
+    for (int corner = 0; corner < 3; ++corner) {
+      mesh.vertices.push_back(center + Eigen::Vector3d(0.2 * next() - 0.1, 0.01 * next(), 0.01 * next()));
+    }
+    mesh.triangles.push_back({v, v + 1, v + 2});
+  }
+  return mesh;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -57,6 +79,11 @@ int main(int argc, char** argv) {
   options.topology_culling = false;
   options.padding = 1.0;
   write(out + "/valid_degenerate_r3.cfl", cfl::serializeCflModel(cfl::buildCflModel(degenerate(), options)));
+
+  options.resolution = 0;  // adaptive
+  options.topology_culling = true;
+  options.padding = 1.0;
+  write(out + "/valid_rod_adaptive.cfl", cfl::serializeCflModel(cfl::buildCflModel(rod(), options)));
 
   std::vector<unsigned char> broken(tiny.begin(), tiny.begin() + tiny.size() / 2);
   write(out + "/broken_truncated.cfl", broken);

@@ -1,6 +1,7 @@
 // CFL model files: a loaded model is the saved one (every query answers bit-identically), the bytes follow
-// the documented little-endian layout, and every kind of damaged or foreign file is refused with a cfl::Error
-// naming the file and the defect - never a crash, a huge allocation or a model that answers differently.
+// the documented little-endian layout, and every kind of damaged, hostile or foreign file is refused with a
+// cfl::Error naming the file and the defect - never a crash, a hang, a huge allocation or a model that
+// answers differently.
 
 #include "cfl/cfl_file.h"
 #include "cfl/cfl_model.h"
@@ -10,6 +11,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -18,7 +20,6 @@
 #include <functional>
 #include <iterator>
 #include <limits>
-#include <map>
 #include <string>
 #include <vector>
 
@@ -30,6 +31,10 @@ constexpr const char* kName = "model_under_test.cfl";
 
 bool sameBits(double x, double y) { return std::memcmp(&x, &y, sizeof(double)) == 0; }
 bool sameBits(const Eigen::Vector3d& x, const Eigen::Vector3d& y) { return std::memcmp(x.data(), y.data(), 24) == 0; }
+template <typename T>
+bool sameBits(const std::vector<T>& x, const std::vector<T>& y) {
+  return x.size() == y.size() && (x.empty() || std::memcmp(x.data(), y.data(), sizeof(T) * x.size()) == 0);
+}
 
 // Bitwise equality of two query answers, counters included (same work means the same search).
 void expectSameAnswer(const DistanceResult& expected, const DistanceResult& actual, const std::string& where) {
@@ -42,7 +47,7 @@ void expectSameAnswer(const DistanceResult& expected, const DistanceResult& actu
   EXPECT_EQ(expected.counters.voxel_tests, actual.counters.voxel_tests) << where;
 }
 
-// Field-by-field equality of two models, the derived Bvh included.
+// Field-by-field equality of two models, the derived Bvh included; floats and doubles bit for bit.
 void expectSameModel(const CflModel& a, const CflModel& b) {
   ASSERT_EQ(a.geometry.mesh.vertices.size(), b.geometry.mesh.vertices.size());
   for (std::size_t v = 0; v < a.geometry.mesh.vertices.size(); ++v) {
@@ -57,23 +62,27 @@ void expectSameModel(const CflModel& a, const CflModel& b) {
         << "bvh node " << n;
   }
   EXPECT_EQ(a.geometry.bvh.triangle_ids, b.geometry.bvh.triangle_ids);
-  EXPECT_TRUE(sameBits(a.grid.origin, b.grid.origin));
-  EXPECT_TRUE(sameBits(a.grid.voxel_size, b.grid.voxel_size));
-  EXPECT_EQ(a.grid.dims, b.grid.dims);
+  const RegionTree &r = a.regions, &s = b.regions;
+  EXPECT_TRUE(sameBits(r.origin, s.origin));
+  EXPECT_TRUE(sameBits(r.root_size, s.root_size));
+  EXPECT_EQ(r.root_dims, s.root_dims);
+  EXPECT_EQ(r.max_depth, s.max_depth);
   EXPECT_TRUE(sameBits(a.padding, b.padding));
   EXPECT_EQ(a.topology_culling, b.topology_culling);
-  EXPECT_EQ(a.voxel_list, b.voxel_list);
-  EXPECT_EQ(a.list_offsets, b.list_offsets);
-  EXPECT_EQ(a.list_triangles, b.list_triangles);
-  EXPECT_EQ(a.list_entry_bounds, b.list_entry_bounds);
-  EXPECT_EQ(0, std::memcmp(a.voxel_lower_bound.data(), b.voxel_lower_bound.data(), 8 * a.voxel_lower_bound.size()));
-  EXPECT_EQ(a.voxel_lower_bound.size(), b.voxel_lower_bound.size());
-  EXPECT_EQ(0, std::memcmp(a.corner_distance.data(), b.corner_distance.data(), 8 * a.corner_distance.size()));
-  EXPECT_EQ(a.corner_distance.size(), b.corner_distance.size());
+  EXPECT_EQ(r.nodes, s.nodes);
+  EXPECT_EQ(r.leaf_list, s.leaf_list);
+  EXPECT_TRUE(sameBits(r.leaf_lower_bound, s.leaf_lower_bound));
+  EXPECT_TRUE(sameBits(r.leaf_corner_distance, s.leaf_corner_distance));
+  EXPECT_EQ(r.list_offsets, s.list_offsets);
+  EXPECT_EQ(r.list_triangles, s.list_triangles);
+  EXPECT_EQ(r.list_entry_bounds, s.list_entry_bounds);
   EXPECT_EQ(a.statistics.resolution, b.statistics.resolution);
   EXPECT_EQ(a.statistics.voxel_count, b.statistics.voxel_count);
+  EXPECT_EQ(a.statistics.leaves_per_depth, b.statistics.leaves_per_depth);
   EXPECT_EQ(a.statistics.distinct_lists, b.statistics.distinct_lists);
   EXPECT_EQ(a.statistics.longest_list, b.statistics.longest_list);
+  EXPECT_EQ(a.statistics.memory_bytes, b.statistics.memory_bytes);
+  EXPECT_EQ(a.statistics.coarsened, b.statistics.coarsened);
   EXPECT_TRUE(sameBits(a.statistics.average_list_length, b.statistics.average_list_length));
   EXPECT_TRUE(sameBits(a.statistics.build_seconds, b.statistics.build_seconds));
 }
@@ -86,7 +95,7 @@ void expectSameAnswers(const CflModel& original, const CflModel& loaded, const C
   const double range = original.geometry.bounds.diagonal();
   for (int i = 0; i < poses; ++i) {
     const Eigen::Isometry3d X_WA = test::randomPose(rng, 0.2 * range);
-    // Translations from inside A to well outside its padded grid.
+    // Translations from inside A to well outside its padded regions.
     const Eigen::Isometry3d X_WB = test::randomPose(rng, (i % 3 + 0.25) * range);
     for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
       DistanceOptions options;
@@ -102,6 +111,7 @@ void expectSameAnswers(const CflModel& original, const CflModel& loaded, const C
   }
 }
 
+// resolution 0: adaptive regions; N > 0: a uniform grid of N cells along the longest axis.
 CflModel build(const TriangleMesh& mesh, int resolution, double padding = 2.0, bool topology_culling = false) {
   BuildOptions options;
   options.resolution = resolution;
@@ -110,10 +120,139 @@ CflModel build(const TriangleMesh& mesh, int resolution, double padding = 2.0, b
   return buildCflModel(mesh, options);
 }
 
-// A small model (12 triangles, 4^3 voxels), so that every byte offset can be tried.
+TriangleMesh squashed(TriangleMesh mesh, double factor) {
+  for (Eigen::Vector3d& p : mesh.vertices) p.tail<2>() *= factor;
+  return mesh;
+}
+
+// A small uniform model (12 triangles, a few dozen cells), so that every byte offset can be tried.
 const CflModel& smallModel() {
   static const CflModel model = build(test::makeBox(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 2, 3)), 4);
   return model;
+}
+
+// A small adaptive model: a soup squashed into a rod, so that the root grid is one row of cells, some of
+// them refined twice. Small enough for every byte offset too.
+const CflModel& adaptiveModel() {
+  static const CflModel model = build(squashed(test::makeTriangleSoup(30, 2, 1.0, 0.2), 0.05), 0, 1.0);
+  return model;
+}
+
+// The depth of every node (parents come before their children).
+std::vector<int> nodeDepths(const RegionTree& tree) {
+  std::vector<int> depth(tree.nodes.size(), 0);
+  for (std::size_t n = 0; n < tree.nodes.size(); ++n) {
+    if (!(tree.nodes[n] & RegionTree::kLeafBit)) {
+      for (int c = 0; c < 8; ++c) depth[tree.nodes[n] + c] = depth[n] + 1;
+    }
+  }
+  return depth;
+}
+
+// The nodes that are leaves (`leaves` true) or that have children (false), in index order.
+std::vector<std::size_t> nodesWhere(const RegionTree& tree, bool leaves) {
+  std::vector<std::size_t> found;
+  for (std::size_t n = 0; n < tree.nodes.size(); ++n) {
+    if (bool(tree.nodes[n] & RegionTree::kLeafBit) == leaves) found.push_back(n);
+  }
+  return found;
+}
+
+// Appends little-endian values, as docs/cfl_file_format.md lays them out.
+struct ByteWriter {
+  Bytes bytes;
+  void u32(std::uint32_t value) {
+    for (int i = 0; i < 4; ++i) bytes.push_back(static_cast<unsigned char>(value >> (8 * i)));
+  }
+  void u64(std::uint64_t value) {
+    for (int i = 0; i < 8; ++i) bytes.push_back(static_cast<unsigned char>(value >> (8 * i)));
+  }
+  void f64(double value) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &value, 8);
+    u64(bits);
+  }
+  void f32(float value) {
+    std::uint32_t bits;
+    std::memcpy(&bits, &value, 4);
+    u32(bits);
+  }
+  void tag(const char* name) { bytes.insert(bytes.end(), name, name + 4); }
+};
+
+// An independent writer of the documented byte map that checks nothing, so that tests can write any model,
+// broken ones included. The layout test expects it to agree with serializeCflModel byte for byte.
+Bytes writeUnchecked(const CflModel& model) {
+  const TriangleMesh& mesh = model.geometry.mesh;
+  const RegionTree& tree = model.regions;
+  const BuildStatistics& s = model.statistics;
+  ByteWriter payload;
+  const auto section = [&](const char* tag, const std::function<void(ByteWriter&)>& body) {
+    ByteWriter out;
+    body(out);
+    payload.tag(tag);
+    payload.u32(0);
+    payload.u64(out.bytes.size());
+    payload.bytes.insert(payload.bytes.end(), out.bytes.begin(), out.bytes.end());
+  };
+  section("MESH", [&](ByteWriter& out) {
+    out.u64(mesh.vertices.size());
+    out.u64(mesh.triangles.size());
+    for (const Eigen::Vector3d& p : mesh.vertices) out.f64(p.x()), out.f64(p.y()), out.f64(p.z());
+    for (const auto& t : mesh.triangles) out.u32(t[0]), out.u32(t[1]), out.u32(t[2]);
+  });
+  section("TREE", [&](ByteWriter& out) {
+    for (int axis = 0; axis < 3; ++axis) out.f64(tree.origin[axis]);
+    out.f64(tree.root_size);
+    for (int axis = 0; axis < 3; ++axis) out.u32(static_cast<std::uint32_t>(tree.root_dims[axis]));
+    out.u32(static_cast<std::uint32_t>(tree.max_depth));
+    out.f64(model.padding);
+    out.u32(model.topology_culling ? 1 : 0);
+  });
+  section("NODE", [&](ByteWriter& out) {
+    out.u64(tree.nodes.size());
+    for (std::uint32_t value : tree.nodes) out.u32(value);
+  });
+  section("LEAF", [&](ByteWriter& out) {
+    out.u64(tree.leaf_list.size());
+    for (std::uint32_t list : tree.leaf_list) out.u32(list);
+    for (float bound : tree.leaf_lower_bound) out.f32(bound);
+    for (const auto& corners : tree.leaf_corner_distance) {
+      for (float distance : corners) out.f32(distance);
+    }
+  });
+  section("LIST", [&](ByteWriter& out) {
+    out.u64(tree.list_offsets.size());
+    out.u64(tree.list_triangles.size());
+    for (std::uint32_t offset : tree.list_offsets) out.u32(offset);
+    for (std::int32_t id : tree.list_triangles) out.u32(static_cast<std::uint32_t>(id));
+  });
+  section("LBND", [&](ByteWriter& out) {
+    out.u64(tree.list_entry_bounds.size());
+    out.bytes.insert(out.bytes.end(), tree.list_entry_bounds.begin(), tree.list_entry_bounds.end());
+  });
+  section("STAT", [&](ByteWriter& out) {
+    out.u64(static_cast<std::uint64_t>(s.resolution));
+    out.u64(static_cast<std::uint64_t>(s.voxel_count));
+    out.f64(s.average_list_length);
+    out.u64(static_cast<std::uint64_t>(s.longest_list));
+    out.u64(static_cast<std::uint64_t>(s.distinct_lists));
+    out.u64(static_cast<std::uint64_t>(s.memory_bytes));
+    out.f64(s.build_seconds);
+    out.u32(s.coarsened ? 1 : 0);
+    out.u64(s.leaves_per_depth.size());
+    for (std::int64_t count : s.leaves_per_depth) out.u64(static_cast<std::uint64_t>(count));
+  });
+  ByteWriter file;
+  const unsigned char magic[8] = {0x89, 'C', 'F', 'L', '\r', '\n', 0x1A, '\n'};
+  file.bytes.assign(magic, magic + 8);
+  file.u32(0x01020304u);
+  file.u32(kCflFileVersion);
+  file.u64(payload.bytes.size());
+  file.u64(0);  // the checksums, sealed below
+  file.bytes.insert(file.bytes.end(), payload.bytes.begin(), payload.bytes.end());
+  detail::resealCflBuffer(file.bytes.data(), file.bytes.size());
+  return file.bytes;
 }
 
 // The byte offset of the body of the section tagged `tag` (after its 16-byte section header), found by
@@ -141,6 +280,11 @@ void putF64(Bytes& bytes, std::size_t at, double value) {
   std::memcpy(&bits, &value, 8);
   putU64(bytes, at, bits);
 }
+void putF32(Bytes& bytes, std::size_t at, float value) {
+  std::uint32_t bits;
+  std::memcpy(&bits, &value, 4);
+  putU32(bytes, at, bits);
+}
 std::uint32_t getU32(const Bytes& bytes, std::size_t at) {
   std::uint32_t value = 0;
   for (int i = 0; i < 4; ++i) value |= std::uint32_t(bytes[at + i]) << (8 * i);
@@ -150,7 +294,7 @@ std::uint64_t getU64(const Bytes& bytes, std::size_t at) {
   return std::uint64_t(getU32(bytes, at)) | std::uint64_t(getU32(bytes, at + 4)) << 32;
 }
 
-// Bit-by-bit CRC-32, written from the definition: an independent reference for the library's table version.
+// Bit-by-bit CRC-32, written from the definition: an independent reference for the library's (zlib's).
 std::uint32_t referenceCrc32(const unsigned char* data, std::size_t size) {
   std::uint32_t crc = 0xFFFFFFFFu;
   for (std::size_t i = 0; i < size; ++i) {
@@ -172,6 +316,32 @@ void expectRefused(const Bytes& bytes, const std::string& expected) {
   }
 }
 
+// Expects `model` to be refused by the loader (written with writeUnchecked) and by the writer, both with
+// `expected` in the message.
+void expectModelRefused(const CflModel& model, const std::string& expected) {
+  expectRefused(writeUnchecked(model), expected);
+  try {
+    serializeCflModel(model);
+    ADD_FAILURE() << "saved a model that should be refused (" << expected << ")";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find(expected), std::string::npos)
+        << "expected '" << expected << "' in: " << error.what();
+  }
+}
+
+// Expects serializeCflModel to refuse `model` with `expected` in the message, for defects that the file
+// cannot even express (it stores one leaf count for the three leaf arrays).
+void expectSaveRefused(const CflModel& model, const std::string& expected) {
+  try {
+    serializeCflModel(model);
+    ADD_FAILURE() << "saved a model that should be refused (" << expected << ")";
+  } catch (const Error& error) {
+    const std::string message = error.what();
+    EXPECT_EQ(message.rfind("cannot save CFL model: ", 0), 0u) << message;
+    EXPECT_NE(message.find(expected), std::string::npos) << "expected '" << expected << "' in: " << message;
+  }
+}
+
 std::string temporaryPath(const std::string& stem) {
   return (std::filesystem::temp_directory_path() /
           (stem + "_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + ".cfl"))
@@ -179,20 +349,26 @@ std::string temporaryPath(const std::string& stem) {
 }
 
 TEST(CflFile, LoadedModelAnswersEveryQueryBitIdentically) {
-  const CflModel b = build(test::makeTorus(0.5, 0.15, 16, 8), 10);
+  const CflModel b = build(test::makeTorus(0.5, 0.15, 16, 8), 0);
   struct Case {
     const char* name;
     CflModel model;
   };
   const Case cases[] = {
-      {"torus knot", build(test::makeTorusKnot(2, 3, 0.5), 16)},
-      {"messy", build(test::makeMessyMesh(), 12, 1.5)},
-      {"open hemisphere, topology culling", build(test::makeHemisphere(), 10, 2.0, true)},
-      {"triangle soup", build(test::makeTriangleSoup(200, 7), 12, 1.0)},
-      {"bunny", build(test::loadBunny(), 20)},
+      {"torus knot, adaptive", build(test::makeTorusKnot(2, 3, 0.5), 0)},
+      {"torus knot, uniform", build(test::makeTorusKnot(2, 3, 0.5), 16)},
+      {"messy, adaptive", build(test::makeMessyMesh(), 0, 1.5)},
+      {"messy, uniform", build(test::makeMessyMesh(), 12, 1.5)},
+      {"open hemisphere, topology culling, adaptive", build(test::makeHemisphere(), 0, 2.0, true)},
+      {"open hemisphere, topology culling, uniform", build(test::makeHemisphere(), 10, 2.0, true)},
+      {"triangle soup, adaptive", build(test::makeTriangleSoup(200, 7), 0, 1.0)},
+      {"bunny, uniform", build(test::loadBunny(), 20)},
+      {"small adaptive rod", adaptiveModel()},
   };
+  bool some_refined = false;
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
+    some_refined |= c.model.regions.max_depth > 0;
     const Bytes bytes = serializeCflModel(c.model);
     const CflModel loaded = deserializeCflModel(bytes.data(), bytes.size(), c.name);
     expectSameModel(c.model, loaded);
@@ -200,10 +376,11 @@ TEST(CflFile, LoadedModelAnswersEveryQueryBitIdentically) {
     // The format has one encoding per model: saving the loaded model gives the same bytes.
     EXPECT_EQ(bytes, serializeCflModel(loaded));
   }
+  EXPECT_TRUE(some_refined) << "no adaptive model was refined: the tree part of the format went untested";
 }
 
 TEST(CflFile, SaveThenLoadThroughTheFileSystemGivesTheSameModel) {
-  const CflModel model = build(test::makeTorusKnot(3, 2, 0.4), 12);
+  const CflModel model = build(test::makeTorusKnot(3, 2, 0.4), 0);
   const std::string path = temporaryPath("cfl_file_test_roundtrip");
   saveCflModel(model, path);
   const CflModel loaded = loadCflModel(path);
@@ -220,40 +397,26 @@ TEST(CflFile, SaveThenLoadThroughTheFileSystemGivesTheSameModel) {
 }
 
 TEST(CflFile, BytesFollowTheDocumentedLittleEndianLayout) {
-  const Bytes bytes = serializeCflModel(smallModel());
-  ASSERT_GE(bytes.size(), 32u);
-  const unsigned char magic[8] = {0x89, 'C', 'F', 'L', '\r', '\n', 0x1A, '\n'};
-  EXPECT_EQ(0, std::memcmp(bytes.data(), magic, 8));
-  EXPECT_EQ(bytes[8], 0x04);
-  EXPECT_EQ(bytes[9], 0x03);
-  EXPECT_EQ(bytes[10], 0x02);
-  EXPECT_EQ(bytes[11], 0x01);
-  EXPECT_EQ(getU32(bytes, 12), kCflFileVersion);
-  EXPECT_EQ(getU64(bytes, 16), bytes.size() - 32);
-  EXPECT_EQ(getU32(bytes, 24), referenceCrc32(bytes.data() + 32, bytes.size() - 32));
-  EXPECT_EQ(getU32(bytes, 28), referenceCrc32(bytes.data(), 28));
-
-  // Sections in the documented order, each holding what the model holds.
-  const CflModel& model = smallModel();
-  const std::size_t mesh = sectionBody(bytes, "MESH");
-  EXPECT_EQ(getU64(bytes, mesh), model.geometry.mesh.vertices.size());
-  EXPECT_EQ(getU64(bytes, mesh + 8), model.geometry.mesh.triangles.size());
-  double x;
-  const std::uint64_t x_bits = getU64(bytes, mesh + 16);
-  std::memcpy(&x, &x_bits, 8);
-  EXPECT_TRUE(sameBits(x, model.geometry.mesh.vertices[0].x()));
-  const std::size_t grid = sectionBody(bytes, "GRID");
-  EXPECT_EQ(static_cast<int>(getU32(bytes, grid + 32)), model.grid.dims[0]);
-  const std::size_t list = sectionBody(bytes, "LIST");
-  EXPECT_EQ(getU64(bytes, list), model.voxel_list.size());
-  EXPECT_EQ(getU64(bytes, list + 8), model.list_offsets.size());
-  EXPECT_EQ(getU64(bytes, list + 16), model.list_triangles.size());
-  const std::size_t bounds = sectionBody(bytes, "BNDS");
-  EXPECT_EQ(getU64(bytes, bounds + 8), model.corner_distance.size());
-  EXPECT_LT(mesh, grid);
-  EXPECT_LT(grid, list);
-  EXPECT_LT(list, bounds);
-  EXPECT_LT(bounds, sectionBody(bytes, "STAT"));
+  for (const CflModel* model : {&smallModel(), &adaptiveModel()}) {
+    const Bytes bytes = serializeCflModel(*model);
+    ASSERT_GE(bytes.size(), 32u);
+    const unsigned char magic[8] = {0x89, 'C', 'F', 'L', '\r', '\n', 0x1A, '\n'};
+    EXPECT_EQ(0, std::memcmp(bytes.data(), magic, 8));
+    EXPECT_EQ(bytes[8], 0x04);
+    EXPECT_EQ(bytes[9], 0x03);
+    EXPECT_EQ(bytes[10], 0x02);
+    EXPECT_EQ(bytes[11], 0x01);
+    EXPECT_EQ(getU32(bytes, 12), 3u);
+    EXPECT_EQ(kCflFileVersion, 3u);
+    EXPECT_EQ(getU64(bytes, 16), bytes.size() - 32);
+    EXPECT_EQ(getU32(bytes, 24), referenceCrc32(bytes.data() + 32, bytes.size() - 32));
+    EXPECT_EQ(getU32(bytes, 28), referenceCrc32(bytes.data(), 28));
+    // Every byte where the byte map in docs/cfl_file_format.md puts it, sections in the documented order.
+    EXPECT_EQ(bytes, writeUnchecked(*model));
+    const char* order[] = {"MESH", "TREE", "NODE", "LEAF", "LIST", "LBND", "STAT"};
+    for (int i = 0; i + 1 < 7; ++i) EXPECT_LT(sectionBody(bytes, order[i]), sectionBody(bytes, order[i + 1])) << order[i];
+    EXPECT_EQ(getU64(bytes, sectionBody(bytes, "TREE") - 8), 60u);
+  }
 }
 
 TEST(CflFile, Crc32MatchesTheStandardCheckValueAndABitwiseReference) {
@@ -293,6 +456,42 @@ TEST(CflFile, WrongVersionAndEndiannessAreNamed) {
   expectRefused(bytes, "endianness marker");
 }
 
+// Versions 1 and 2 held a uniform grid; no loader is kept for them, and the message says what to do.
+TEST(CflFile, VersionsOneAndTwoAreRefusedWithTheRebuildMessage) {
+  for (std::uint32_t version : {1u, 2u}) {
+    Bytes bytes = serializeCflModel(smallModel());
+    putU32(bytes, 12, version);
+    const std::string expected = std::string(kName) + ": a version-" + std::to_string(version) +
+                                 " CFL file (uniform grid) from an earlier cfl: rebuild it with `cfl build`";
+    // As an old file is (its checksums right for it), and as edited here (its header checksum now wrong):
+    // the version is named first either way.
+    for (bool reseal : {true, false}) {
+      Bytes file = bytes;
+      if (reseal) detail::resealCflBuffer(file.data(), file.size());
+      try {
+        deserializeCflModel(file.data(), file.size(), kName);
+        ADD_FAILURE() << "loaded a version-" << version << " file";
+      } catch (const Error& error) {
+        EXPECT_EQ(std::string(error.what()), expected);
+      }
+    }
+  }
+  // Through the file system, the header alone decides.
+  Bytes bytes = serializeCflModel(smallModel());
+  putU32(bytes, 12, 2);
+  detail::resealCflBuffer(bytes.data(), bytes.size());
+  const std::string path = temporaryPath("cfl_file_test_version_2");
+  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+  try {
+    loadCflModel(path);
+    ADD_FAILURE() << "loaded a version-2 file";
+  } catch (const Error& error) {
+    EXPECT_EQ(std::string(error.what()),
+              path + ": a version-2 CFL file (uniform grid) from an earlier cfl: rebuild it with `cfl build`");
+  }
+  std::filesystem::remove(path);
+}
+
 TEST(CflFile, CorruptionIsCaughtByTheChecksums) {
   const Bytes good = serializeCflModel(smallModel());
   Bytes bytes = good;
@@ -307,54 +506,59 @@ TEST(CflFile, CorruptionIsCaughtByTheChecksums) {
 }
 
 TEST(CflFile, TruncationAtEveryByteOffsetIsRefused) {
-  const Bytes good = serializeCflModel(smallModel());
-  ASSERT_LT(good.size(), 100000u) << "the small model grew; this test tries every prefix";
-  for (std::size_t size = 0; size < good.size(); ++size) {
-    const Bytes prefix(good.begin(), good.begin() + size);
-    try {
-      deserializeCflModel(prefix.data(), prefix.size(), kName);
-      ADD_FAILURE() << "a file truncated to " << size << " bytes loaded";
-    } catch (const Error& error) {
-      ASSERT_EQ(std::string(error.what()).rfind(kName, 0), 0u) << error.what();
+  for (const CflModel* model : {&smallModel(), &adaptiveModel()}) {
+    const Bytes good = serializeCflModel(*model);
+    ASSERT_LT(good.size(), 100000u) << "the small models grew; this test tries every prefix";
+    for (std::size_t size = 0; size < good.size(); ++size) {
+      const Bytes prefix(good.begin(), good.begin() + size);
+      try {
+        deserializeCflModel(prefix.data(), prefix.size(), kName);
+        ADD_FAILURE() << "a file truncated to " << size << " bytes loaded";
+      } catch (const Error& error) {
+        ASSERT_EQ(std::string(error.what()).rfind(kName, 0), 0u) << error.what();
+      }
     }
+    // Extra bytes at the end are refused as well (a concatenation or a botched copy).
+    Bytes longer = good;
+    longer.push_back(0);
+    expectRefused(longer, "unexpected bytes after the payload");
   }
-  // Extra bytes at the end are refused as well (a concatenation or a botched copy).
-  Bytes longer = good;
-  longer.push_back(0);
-  expectRefused(longer, "unexpected bytes after the payload");
 }
 
 TEST(CflFile, EverySingleByteFlipIsRefused) {
   // CRC-32 detects every error burst of up to 32 bits, so each flipped byte, wherever it is, must be caught.
-  const Bytes good = serializeCflModel(smallModel());
   test::Rng rng(11);
-  for (std::size_t at = 0; at < good.size(); ++at) {
-    Bytes bytes = good;
-    bytes[at] ^= static_cast<unsigned char>(1 + rng() % 255);
-    try {
-      deserializeCflModel(bytes.data(), bytes.size(), kName);
-      ADD_FAILURE() << "a file with byte " << at << " changed loaded";
-    } catch (const Error& error) {
-      ASSERT_EQ(std::string(error.what()).rfind(kName, 0), 0u) << error.what();
+  for (const CflModel* model : {&smallModel(), &adaptiveModel()}) {
+    const Bytes good = serializeCflModel(*model);
+    for (std::size_t at = 0; at < good.size(); ++at) {
+      Bytes bytes = good;
+      bytes[at] ^= static_cast<unsigned char>(1 + rng() % 255);
+      try {
+        deserializeCflModel(bytes.data(), bytes.size(), kName);
+        ADD_FAILURE() << "a file with byte " << at << " changed loaded";
+      } catch (const Error& error) {
+        ASSERT_EQ(std::string(error.what()).rfind(kName, 0), 0u) << error.what();
+      }
     }
   }
 }
 
 TEST(CflFile, RandomMultiByteDamageNeverLoadsADifferentModel) {
-  const CflModel& model = smallModel();
-  const Bytes good = serializeCflModel(model);
   const CflModel b = build(test::makeTorus(0.5, 0.2, 12, 6), 6);
   test::Rng rng(5);
-  for (int trial = 0; trial < 3000; ++trial) {
-    Bytes bytes = good;
-    const int flips = 2 + static_cast<int>(rng() % 8);
-    for (int f = 0; f < flips; ++f) bytes[rng() % bytes.size()] ^= static_cast<unsigned char>(1 + rng() % 255);
-    try {
-      const CflModel loaded = deserializeCflModel(bytes.data(), bytes.size(), kName);
-      // Only possible if the damage happened to cancel out; the model must then be the original.
-      expectSameModel(model, loaded);
-      expectSameAnswers(model, loaded, b, 2, trial);
-    } catch (const Error&) {
+  for (const CflModel* model : {&smallModel(), &adaptiveModel()}) {
+    const Bytes good = serializeCflModel(*model);
+    for (int trial = 0; trial < 1500; ++trial) {
+      Bytes bytes = good;
+      const int flips = 2 + static_cast<int>(rng() % 8);
+      for (int f = 0; f < flips; ++f) bytes[rng() % bytes.size()] ^= static_cast<unsigned char>(1 + rng() % 255);
+      try {
+        const CflModel loaded = deserializeCflModel(bytes.data(), bytes.size(), kName);
+        // Only possible if the damage happened to cancel out; the model must then be the original.
+        expectSameModel(*model, loaded);
+        expectSameAnswers(*model, loaded, b, 2, trial);
+      } catch (const Error&) {
+      }
     }
   }
 }
@@ -362,87 +566,106 @@ TEST(CflFile, RandomMultiByteDamageNeverLoadsADifferentModel) {
 // Damaged and then resealed (as a buggy writer would produce), so the checks behind the checksums run: the
 // loader must refuse with a cfl::Error or load a model that is structurally sound and can be queried.
 TEST(CflFile, ResealedRandomDamageIsRefusedOrLoadsAQueryableModel) {
-  const Bytes good = serializeCflModel(smallModel());
   const MeshModel b = makeMeshModel(test::makeTorus(0.5, 0.2, 12, 6));
   test::Rng rng(9);
-  int refused = 0;
-  for (int trial = 0; trial < 3000; ++trial) {
-    Bytes bytes = good;
-    const int flips = 1 + static_cast<int>(rng() % 4);
-    for (int f = 0; f < flips; ++f) {
-      bytes[32 + rng() % (bytes.size() - 32)] ^= static_cast<unsigned char>(1u << (rng() % 8));
+  for (const CflModel* model : {&smallModel(), &adaptiveModel()}) {
+    const Bytes good = serializeCflModel(*model);
+    int refused = 0;
+    for (int trial = 0; trial < 3000; ++trial) {
+      Bytes bytes = good;
+      const int flips = 1 + static_cast<int>(rng() % 4);
+      for (int f = 0; f < flips; ++f) {
+        bytes[32 + rng() % (bytes.size() - 32)] ^= static_cast<unsigned char>(1u << (rng() % 8));
+      }
+      detail::resealCflBuffer(bytes.data(), bytes.size());
+      try {
+        const CflModel loaded = deserializeCflModel(bytes.data(), bytes.size(), kName);
+        for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+          DistanceOptions options;
+          options.mode = mode;
+          const DistanceResult result =
+              computeDistance(loaded, Eigen::Isometry3d::Identity(), b, test::randomPose(rng, 3.0), options);
+          EXPECT_GE(result.distance, 0.0);
+        }
+      } catch (const Error& error) {
+        ++refused;
+        ASSERT_EQ(std::string(error.what()).rfind(kName, 0), 0u) << error.what();
+      }
     }
-    detail::resealCflBuffer(bytes.data(), bytes.size());
-    try {
-      const CflModel loaded = deserializeCflModel(bytes.data(), bytes.size(), kName);
-      const DistanceResult result =
-          computeDistance(loaded, Eigen::Isometry3d::Identity(), b, test::randomPose(rng, 3.0));
-      EXPECT_GE(result.distance, 0.0);
-    } catch (const Error& error) {
-      ++refused;
-      ASSERT_EQ(std::string(error.what()).rfind(kName, 0), 0u) << error.what();
-    }
+    EXPECT_GT(refused, 0);
   }
-  EXPECT_GT(refused, 0);
 }
 
 // A model saved intact, then edited field by field at its documented offset and resealed, so that each
 // structural check is reached past the checksum.
 class CflFileStructure : public ::testing::Test {
  protected:
-  void SetUp() override { good_ = serializeCflModel(smallModel()); }
-  Bytes edited(const std::function<void(Bytes&)>& edit) const {
-    Bytes bytes = good_;
+  void SetUp() override {
+    good_ = serializeCflModel(smallModel());
+    adaptive_ = serializeCflModel(adaptiveModel());
+  }
+  static Bytes edited(const Bytes& good, const std::function<void(Bytes&)>& edit) {
+    Bytes bytes = good;
     edit(bytes);
     detail::resealCflBuffer(bytes.data(), bytes.size());
     return bytes;
   }
-  Bytes good_;
+  Bytes edited(const std::function<void(Bytes&)>& edit) const { return edited(good_, edit); }
+  Bytes editedAdaptive(const std::function<void(Bytes&)>& edit) const { return edited(adaptive_, edit); }
+  Bytes good_, adaptive_;
 };
 
 TEST_F(CflFileStructure, AbsurdCountsAreRefusedWithoutAllocating) {
   // Counts of 2^60 elements would need exabytes: each must be refused before any allocation.
   const std::size_t mesh = sectionBody(good_, "MESH");
+  const std::size_t nodes = sectionBody(good_, "NODE");
+  const std::size_t leaves = sectionBody(good_, "LEAF");
   const std::size_t list = sectionBody(good_, "LIST");
-  const std::size_t bounds = sectionBody(good_, "BNDS");
+  const std::size_t entry_bounds = sectionBody(good_, "LBND");
+  const std::size_t stat = sectionBody(good_, "STAT");
   const std::uint64_t huge = std::uint64_t(1) << 60;
   expectRefused(edited([&](Bytes& b) { putU64(b, mesh, huge); }), "vertex count");
   expectRefused(edited([&](Bytes& b) { putU64(b, mesh + 8, huge); }), "triangle count");
-  expectRefused(edited([&](Bytes& b) { putU64(b, list, huge); }), "voxel_list size");
-  expectRefused(edited([&](Bytes& b) { putU64(b, list + 16, huge); }), "list_triangles size");
-  expectRefused(edited([&](Bytes& b) { putU64(b, bounds + 8, huge); }), "corner_distance size");
+  expectRefused(edited([&](Bytes& b) { putU64(b, nodes, huge); }), "node count");
+  expectRefused(edited([&](Bytes& b) { putU64(b, leaves, huge); }), "leaf count");
+  expectRefused(edited([&](Bytes& b) { putU64(b, list, huge); }), "list_offsets size");
+  expectRefused(edited([&](Bytes& b) { putU64(b, list + 8, huge); }), "list_triangles size");
+  expectRefused(edited([&](Bytes& b) { putU64(b, entry_bounds, huge); }), "list_entry_bounds size");
+  expectRefused(edited([&](Bytes& b) { putU64(b, stat + 60, huge); }), "leaves_per_depth size");
   expectRefused(edited([&](Bytes& b) { putU64(b, 16, huge); }), "truncated");
   // A section length past the end of the file.
   expectRefused(edited([&](Bytes& b) { putU64(b, list - 8, huge); }), "runs past the end");
   // Counts that fit the file but do not add up to the section.
-  expectRefused(edited([&](Bytes& b) { putU64(b, list + 16, getU64(b, list + 16) - 1); }), "unexpected bytes");
+  expectRefused(edited([&](Bytes& b) { putU64(b, list + 8, getU64(b, list + 8) - 1); }), "unexpected bytes");
+  expectRefused(edited([&](Bytes& b) { putU64(b, nodes, getU64(b, nodes) - 1); }), "unexpected bytes");
+  expectRefused(edited([&](Bytes& b) { putU64(b, leaves, getU64(b, leaves) + 1); }), "leaf count");
 }
 
 TEST_F(CflFileStructure, ListContentsOutOfRangeOrUnorderedAreRefused) {
   const CflModel& model = smallModel();
+  const RegionTree& tree = model.regions;
   const std::size_t list = sectionBody(good_, "LIST");
-  const std::size_t voxels = model.voxel_list.size(), offsets = model.list_offsets.size();
-  const std::size_t voxel_list_at = list + 24, offsets_at = voxel_list_at + 4 * voxels,
-                    ids_at = offsets_at + 4 * offsets;
+  const std::size_t offsets = tree.list_offsets.size();
+  const std::size_t offsets_at = list + 16, ids_at = offsets_at + 4 * offsets;
   const std::uint32_t triangle_count = static_cast<std::uint32_t>(model.geometry.mesh.triangles.size());
 
   expectRefused(edited([&](Bytes& b) { putU32(b, ids_at, triangle_count); }),
                 "triangle id " + std::to_string(triangle_count) + ", out of range");
   expectRefused(edited([&](Bytes& b) { putU32(b, ids_at, 0xFFFFFFFFu); }), "triangle id -1, out of range");
-  expectRefused(edited([&](Bytes& b) { putU32(b, voxel_list_at + 4, static_cast<std::uint32_t>(offsets)); }),
-                "voxel 1 refers to list");
   expectRefused(edited([&](Bytes& b) { putU32(b, offsets_at, 1); }), "list_offsets[0]");
   ASSERT_GE(offsets, 3u) << "the small model needs at least two lists for this test";
   // Offsets that go backwards.
   expectRefused(edited([&](Bytes& b) { putU32(b, offsets_at + 4, getU32(b, offsets_at + 8) + 1); }), "not increasing");
   expectRefused(edited([&](Bytes& b) { putU32(b, offsets_at + 4 * (offsets - 1), 0); }), "last list offset");
+  // An empty list.
+  expectRefused(edited([&](Bytes& b) { putU32(b, offsets_at + 4, 0); }), "list 0 is empty");
   // Find a list with two entries at least and swap them.
   std::size_t two = offsets;
   for (std::size_t l = 0; l + 1 < offsets && two == offsets; ++l) {
-    if (model.list_offsets[l + 1] - model.list_offsets[l] >= 2) two = l;
+    if (tree.list_offsets[l + 1] - tree.list_offsets[l] >= 2) two = l;
   }
   ASSERT_LT(two, offsets);
-  const std::size_t first = ids_at + 4 * model.list_offsets[two];
+  const std::size_t first = ids_at + 4 * tree.list_offsets[two];
   expectRefused(edited([&](Bytes& b) {
                   const std::uint32_t x = getU32(b, first), y = getU32(b, first + 4);
                   putU32(b, first, y);
@@ -451,24 +674,239 @@ TEST_F(CflFileStructure, ListContentsOutOfRangeOrUnorderedAreRefused) {
                 "not sorted");
 }
 
-TEST_F(CflFileStructure, GridInconsistentWithArraysIsRefused) {
-  const std::size_t grid = sectionBody(good_, "GRID");
-  const std::size_t dims = grid + 32;
-  expectRefused(edited([&](Bytes& b) { putU32(b, dims, getU32(b, dims) + 1); }), "voxel_list has");
-  expectRefused(edited([&](Bytes& b) { putU32(b, dims + 4, 0); }), "dims[1] is 0");
-  expectRefused(edited([&](Bytes& b) { putU32(b, dims + 8, 0x80000000u); }), "dims[2] is -2147483648");
-  expectRefused(edited([&](Bytes& b) { putU32(b, dims + 12 + 8, 2); }), "unknown flags");
+TEST_F(CflFileStructure, EntryBoundsAreRequiredAndChecked) {
+  const RegionTree& tree = smallModel().regions;
+  // Renamed, LBND is an unknown section (skipped), so it is missing.
+  expectRefused(edited([&](Bytes& b) { b[sectionBody(b, "LBND") - 16] = 'X'; }), "required section LBND is missing");
+  // Bounds out of order inside a list: find a list of two entries or more and raise the first bound.
+  const std::size_t body = sectionBody(good_, "LBND");
+  std::size_t two = tree.list_offsets.size();
+  for (std::size_t l = 0; l + 1 < tree.list_offsets.size(); ++l) {
+    if (tree.list_offsets[l + 1] - tree.list_offsets[l] >= 2) {
+      two = l;
+      break;
+    }
+  }
+  ASSERT_LT(two + 1, tree.list_offsets.size());
+  const std::size_t entry = body + 8 + tree.list_offsets[two];
+  expectRefused(edited([&](Bytes& b) { b[entry] = static_cast<unsigned char>(std::max<int>(b[entry + 1], 1) + 1); }),
+                "not sorted by (entry bound, id)");
+  // A count that does not match the lists (the section then ends early: the count is checked first).
+  expectRefused(edited([&](Bytes& b) { putU64(b, body, getU64(b, body) - 1); }), "LBND");
+  CflModel model = smallModel();
+  model.regions.list_entry_bounds.pop_back();
+  expectModelRefused(model, "but list_entry_bounds has");
 }
 
-TEST_F(CflFileStructure, HugeGridDimsAreRefusedWithoutOverflow) {
-  // Found by cfl_file_fuzzer: dims whose product overflows 64 bits must not be multiplied.
-  const std::size_t dims = sectionBody(good_, "GRID") + 32;
+TEST_F(CflFileStructure, RootGridInconsistentWithTheNodesIsRefused) {
+  const std::size_t tree = sectionBody(good_, "TREE");
+  const std::size_t dims = tree + 32;
+  expectRefused(edited([&](Bytes& b) { putU32(b, dims, getU32(b, dims) + 1); }), "nodes");
+  expectRefused(edited([&](Bytes& b) { putU32(b, dims + 4, 0); }), "root_dims[1] is 0");
+  expectRefused(edited([&](Bytes& b) { putU32(b, dims + 8, 0x80000000u); }), "root_dims[2] is -2147483648");
+  expectRefused(edited([&](Bytes& b) { putU32(b, tree + 56, 2); }), "unknown flags");
+  // Fewer root cells than the file's nodes: the rest are nobody's children.
+  expectRefused(edited([&](Bytes& b) { putU32(b, dims + 8, getU32(b, dims + 8) - 1); }), "no node points to it");
+}
+
+TEST_F(CflFileStructure, HugeRootDimsAreRefusedWithoutOverflow) {
+  // Dims whose product overflows 64 bits must not be multiplied.
+  const std::size_t dims = sectionBody(good_, "TREE") + 32;
   expectRefused(edited([&](Bytes& b) {
                   for (int axis = 0; axis < 3; ++axis) putU32(b, dims + 4 * axis, 0x7FFFFFFEu);
                 }),
-                "grid of 2147483646 x 2147483646 x 2147483646 voxels");
-  expectRefused(edited([&](Bytes& b) { putU32(b, dims, 0x7FFFFFFFu); }), "dims[0] is 2147483647");
-  expectRefused(edited([&](Bytes& b) { putU32(b, dims + 8, 0x40000000u); }), "voxel_list has");
+                "root grid of 2147483646 x 2147483646 x 2147483646 cells, but only");
+  expectRefused(edited([&](Bytes& b) { putU32(b, dims, 0x7FFFFFFFu); }), "cells, but only");
+  expectRefused(edited([&](Bytes& b) { putU32(b, dims + 8, 0x40000000u); }), "cells, but only");
+}
+
+// Each invariant of the tree that the query relies on (to stay in bounds, to end, and to keep its fixed
+// stack) is refused by name, whether it comes from a file or from a model about to be saved.
+TEST_F(CflFileStructure, NodesThatLoopOrShareChildrenAreRefused) {
+  const CflModel& good = adaptiveModel();
+  const RegionTree& tree = good.regions;
+  const std::vector<std::size_t> parents = nodesWhere(tree, false), leaves = nodesWhere(tree, true);
+  ASSERT_GE(good.regions.max_depth, 2) << "the adaptive test model must have been refined twice";
+  ASSERT_GE(parents.size(), 2u);
+  ASSERT_LT(parents[1], std::size_t(tree.rootCount())) << "needs two refined root cells";
+  const std::size_t inner = parents.back();  // a node below the roots with children
+  ASSERT_GE(inner, std::size_t(tree.rootCount()));
+
+  const auto with = [&](std::size_t node, std::uint32_t value) {
+    CflModel model = good;
+    model.regions.nodes[node] = value;
+    return model;
+  };
+  const std::string self = "node " + std::to_string(inner) + " points to children at node " + std::to_string(inner) + ", not after itself";
+  expectModelRefused(with(inner, std::uint32_t(inner)), self);
+  expectModelRefused(with(inner, std::uint32_t(inner - 1)), "not after itself");
+  expectModelRefused(with(inner, std::uint32_t(parents[0])), "not after itself");
+  // Forward, but into the root cells.
+  expectModelRefused(with(0, 1), "node 0 points to children at node 1");
+  // Forward, past the end.
+  expectModelRefused(with(parents[0], std::uint32_t(tree.nodes.size() - 7)), "past the " + std::to_string(tree.nodes.size()) + " nodes");
+  // Two parents, one child block; then two blocks that overlap.
+  const std::uint32_t block = tree.nodes[parents[0]];
+  expectModelRefused(with(parents[1], block),
+                     "node " + std::to_string(block) + " is the child of two parents, nodes " + std::to_string(parents[0]) +
+                         " and " + std::to_string(parents[1]));
+  expectModelRefused(with(parents[1], block + 1), "is the child of two parents");
+  // The same edit in the file itself, at its documented offset.
+  const std::size_t nodes_at = sectionBody(adaptive_, "NODE") + 8;
+  expectRefused(editedAdaptive([&](Bytes& b) { putU32(b, nodes_at + 4 * parents[1], block); }), "is the child of two parents");
+  expectRefused(editedAdaptive([&](Bytes& b) { putU32(b, nodes_at + 4 * inner, std::uint32_t(inner)); }), self);
+  // Unreachable nodes after the tree.
+  CflModel model = good;
+  model.regions.nodes.insert(model.regions.nodes.end(), 8, tree.nodes[leaves[0]]);
+  expectModelRefused(model, "node " + std::to_string(tree.nodes.size()) + " is not a root cell and no node points to it");
+}
+
+TEST_F(CflFileStructure, LeavesReferencedTwiceOrNeverOrOutOfRangeAreRefused) {
+  const CflModel& good = adaptiveModel();
+  const RegionTree& tree = good.regions;
+  const std::vector<std::size_t> leaves = nodesWhere(tree, true);
+  const std::uint32_t leaf_count = static_cast<std::uint32_t>(tree.leafCount());
+  const std::uint32_t list_count = static_cast<std::uint32_t>(tree.list_offsets.size() - 1);
+  ASSERT_GE(leaves.size(), 2u);
+
+  CflModel model = good;
+  model.regions.nodes[leaves[1]] = tree.nodes[leaves[0]];
+  expectModelRefused(model, "leaf " + std::to_string(tree.nodes[leaves[0]] & ~RegionTree::kLeafBit) +
+                                " is referenced twice (again by node " + std::to_string(leaves[1]) + ")");
+  model = good;
+  model.regions.nodes[leaves[0]] = RegionTree::kLeafBit | leaf_count;
+  expectModelRefused(model, "node " + std::to_string(leaves[0]) + " is leaf " + std::to_string(leaf_count) + ", out of range");
+  // A leaf no node names: one more leaf at the end of the leaf arrays.
+  model = good;
+  model.regions.leaf_list.push_back(0);
+  model.regions.leaf_lower_bound.push_back(0);
+  model.regions.leaf_corner_distance.push_back({});
+  expectModelRefused(model, "leaf " + std::to_string(leaf_count) + " is referenced by no node");
+  // Leaf arrays of different lengths.
+  model = good;
+  model.regions.leaf_lower_bound.pop_back();
+  expectSaveRefused(model, "leaf arrays disagree");
+
+  // leaf_list out of range, edited in the file.
+  const std::size_t leaf_list_at = sectionBody(adaptive_, "LEAF") + 8;
+  expectRefused(editedAdaptive([&](Bytes& b) { putU32(b, leaf_list_at + 4 * 3, list_count); }),
+                "leaf_list of leaf 3 is list " + std::to_string(list_count) + ", out of range [0, " +
+                    std::to_string(list_count) + ")");
+  model = good;
+  model.regions.leaf_list.back() = 0xFFFFFFFFu;
+  expectModelRefused(model, "leaf_list of leaf " + std::to_string(leaf_count - 1) + " is list 4294967295");
+}
+
+// Replaces root cell `root` (a leaf) by a chain of cells `depth` levels deep: at every level child 0 is
+// split again and the other seven are new leaves. Every new leaf reuses the old leaf's list and lower bound
+// (both stay true for a smaller cell: entry bounds are counted in finer units there, so they only get
+// lower) with corner distances 0 (true lower bounds), so the model stays exact.
+CflModel deepened(const CflModel& good, std::size_t root, int depth) {
+  CflModel model = good;
+  RegionTree& tree = model.regions;
+  const std::uint32_t old_leaf = tree.nodes[root] & ~RegionTree::kLeafBit;
+  const auto newLeaf = [&]() {
+    tree.leaf_list.push_back(tree.leaf_list[old_leaf]);
+    tree.leaf_lower_bound.push_back(tree.leaf_lower_bound[old_leaf]);
+    tree.leaf_corner_distance.push_back({});
+    return RegionTree::kLeafBit | std::uint32_t(tree.leaf_list.size() - 1);
+  };
+  std::size_t parent = root;
+  for (int level = 1; level <= depth; ++level) {
+    const std::uint32_t block = static_cast<std::uint32_t>(tree.nodes.size());
+    tree.nodes[parent] = block;
+    tree.nodes.resize(block + 8);
+    for (int c = 1; c < 8; ++c) tree.nodes[block + c] = newLeaf();
+    tree.nodes[block] = level == depth ? (RegionTree::kLeafBit | old_leaf) : 0;  // split again on the next level
+    parent = block;
+  }
+  tree.max_depth = std::max(tree.max_depth, depth);
+  BuildStatistics& s = model.statistics;
+  s.voxel_count = tree.leafCount();
+  s.leaves_per_depth.assign(tree.max_depth + 1, 0);
+  const std::vector<int> depths = nodeDepths(tree);
+  for (std::size_t n = 0; n < tree.nodes.size(); ++n) {
+    if (tree.nodes[n] & RegionTree::kLeafBit) ++s.leaves_per_depth[depths[n]];
+  }
+  return model;
+}
+
+TEST_F(CflFileStructure, TreesDeeperThanTwentyFourLevelsAreRefused) {
+  const CflModel& good = adaptiveModel();
+  const std::vector<std::size_t> leaves = nodesWhere(good.regions, true);
+  ASSERT_LT(leaves[0], std::size_t(good.regions.rootCount())) << "needs a root cell that is a leaf";
+
+  // 24 levels, the most forEachLeafInBox's stack holds: saved, loaded and queried, exactly.
+  const CflModel deepest = deepened(good, leaves[0], 24);
+  const Bytes bytes = serializeCflModel(deepest);
+  EXPECT_EQ(bytes, writeUnchecked(deepest));
+  const CflModel loaded = deserializeCflModel(bytes.data(), bytes.size(), kName);
+  EXPECT_EQ(loaded.regions.max_depth, 24);
+  const MeshModel b = makeMeshModel(test::makeTorus(0.2, 0.05, 12, 6));
+  test::Rng rng(17);
+  // B near the lower corner of that root cell, towards which the chain shrinks.
+  const RegionTree& tree = good.regions;
+  const std::int64_t root = static_cast<std::int64_t>(leaves[0]);
+  const Eigen::Vector3d deep_corner =
+      tree.origin + tree.root_size * Eigen::Vector3d(double(root % tree.root_dims[0]),
+                                                     double((root / tree.root_dims[0]) % tree.root_dims[1]),
+                                                     double(root / (std::int64_t(tree.root_dims[0]) * tree.root_dims[1])));
+  const double diagonal = good.geometry.bounds.diagonal();
+  std::int64_t shallow_cells = 0, deep_cells = 0;
+  for (int i = 0; i < 10; ++i) {
+    Eigen::Isometry3d X_WB = test::randomPose(rng, 0.1 * diagonal);
+    X_WB.translation() += deep_corner;
+    const double truth = bruteForceDistance(good.geometry, Eigen::Isometry3d::Identity(), b, X_WB).distance;
+    for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+      DistanceOptions options;
+      options.mode = mode;
+      const DistanceResult deep = computeDistance(loaded, Eigen::Isometry3d::Identity(), b, X_WB, options);
+      EXPECT_NEAR(deep.distance, truth, 1e-9 * diagonal) << "pose " << i;
+      deep_cells += deep.counters.voxel_tests;
+      shallow_cells += computeDistance(good, Eigen::Isometry3d::Identity(), b, X_WB, options).counters.voxel_tests;
+    }
+  }
+  // The queries did walk into the chain (it holds more cells than the leaf it replaced).
+  EXPECT_GT(deep_cells, shallow_cells);
+
+  // 25 levels: refused whether max_depth says so or not.
+  CflModel deeper = deepened(good, leaves[0], 25);
+  expectModelRefused(deeper, "regions max_depth is 25, must be in [0, 24]");
+  deeper.regions.max_depth = 24;
+  expectModelRefused(deeper, "at depth 24 has children at depth 25, deeper than max_depth 24");
+  // max_depth must be the deepest leaf's depth, not more, not less.
+  const std::size_t max_depth_at = sectionBody(adaptive_, "TREE") + 44;
+  expectRefused(editedAdaptive([&](Bytes& b) { putU32(b, max_depth_at, std::uint32_t(good.regions.max_depth - 1)); }),
+                "deeper than max_depth " + std::to_string(good.regions.max_depth - 1));
+  expectRefused(editedAdaptive([&](Bytes& b) { putU32(b, max_depth_at, std::uint32_t(good.regions.max_depth + 1)); }),
+                "but the deepest leaf is at depth " + std::to_string(good.regions.max_depth));
+  expectRefused(editedAdaptive([&](Bytes& b) { putU32(b, max_depth_at, 0xFFFFFFFFu); }), "max_depth is -1");
+  expectRefused(editedAdaptive([&](Bytes& b) { putU32(b, max_depth_at, 1000); }), "max_depth is 1000");
+}
+
+TEST_F(CflFileStructure, StatisticsMustAgreeWithTheRegions) {
+  const CflModel& good = adaptiveModel();
+  const std::size_t stat = sectionBody(adaptive_, "STAT");
+  expectRefused(editedAdaptive([&](Bytes& b) { putU64(b, stat + 8, getU64(b, stat + 8) + 1); }),
+                "statistics say " + std::to_string(good.statistics.voxel_count + 1) + " leaves");
+  expectRefused(editedAdaptive([&](Bytes& b) {
+                  putU64(b, stat + 68, getU64(b, stat + 68) + 1);
+                  putU64(b, stat + 76, getU64(b, stat + 76) - 1);
+                }),
+                "statistics say leaves per depth [");
+  expectRefused(editedAdaptive([&](Bytes& b) { putU64(b, stat + 32, getU64(b, stat + 32) + 1); }), "distinct lists");
+  expectRefused(editedAdaptive([&](Bytes& b) { putU32(b, stat + 56, 2); }), "unknown statistics flags");
+  expectRefused(editedAdaptive([&](Bytes& b) { putF64(b, stat + 16, -1.0); }), "statistics hold a negative");
+  expectRefused(editedAdaptive([&](Bytes& b) { putU64(b, stat, 0); }), "statistics hold a negative");
+  // The coarsened flag is kept.
+  CflModel coarsened = good;
+  coarsened.statistics.coarsened = true;
+  const Bytes bytes = serializeCflModel(coarsened);
+  EXPECT_TRUE(deserializeCflModel(bytes.data(), bytes.size(), kName).statistics.coarsened);
+  // One entry too many in leaves_per_depth.
+  CflModel longer = good;
+  longer.statistics.leaves_per_depth.push_back(0);
+  expectModelRefused(longer, "statistics say leaves per depth [");
 }
 
 // Every input that once crashed a fuzzer, kept in fuzz/regressions/, must now be refused or load cleanly,
@@ -498,17 +936,28 @@ TEST(CflFile, FuzzerRegressionInputsAreHandled) {
 TEST_F(CflFileStructure, NonFiniteValuesAreRefused) {
   const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
   const std::size_t mesh = sectionBody(good_, "MESH");
-  const std::size_t grid = sectionBody(good_, "GRID");
-  const std::size_t bounds = sectionBody(good_, "BNDS");
-  const std::size_t voxels = smallModel().voxel_list.size();
+  const std::size_t tree = sectionBody(good_, "TREE");
+  const std::size_t leaves = sectionBody(good_, "LEAF");
+  const std::size_t leaf_count = smallModel().regions.leaf_list.size();
+  const std::size_t lower_at = leaves + 8 + 4 * leaf_count, corners_at = lower_at + 4 * leaf_count;
   expectRefused(edited([&](Bytes& b) { putF64(b, mesh + 16 + 24 * 2 + 8, nan); }), "vertex 2 has a non-finite");
-  expectRefused(edited([&](Bytes& b) { putF64(b, grid + 8, inf); }), "grid origin is not finite");
-  expectRefused(edited([&](Bytes& b) { putF64(b, grid + 24, nan); }), "voxel size");
-  expectRefused(edited([&](Bytes& b) { putF64(b, grid + 24, -1.0); }), "voxel size");
-  expectRefused(edited([&](Bytes& b) { putF64(b, grid + 24, 1e308); }), "far corner is not finite");
-  expectRefused(edited([&](Bytes& b) { putF64(b, grid + 44, 0.5); }), "padding");
-  expectRefused(edited([&](Bytes& b) { putF64(b, bounds + 16 + 8 * 3, nan); }), "voxel_lower_bound of voxel 3");
-  expectRefused(edited([&](Bytes& b) { putF64(b, bounds + 16 + 8 * voxels, -inf); }), "corner_distance of corner 0");
+  expectRefused(edited([&](Bytes& b) { putF64(b, tree + 8, inf); }), "regions origin is not finite");
+  expectRefused(edited([&](Bytes& b) { putF64(b, tree + 24, nan); }), "root_size is nan");
+  expectRefused(edited([&](Bytes& b) { putF64(b, tree + 24, -1.0); }), "root_size is -1");
+  expectRefused(edited([&](Bytes& b) { putF64(b, tree + 24, 0.0); }), "root_size is 0");
+  expectRefused(edited([&](Bytes& b) { putF64(b, tree + 24, 1e308); }), "far corner is not finite");
+  expectRefused(edited([&](Bytes& b) { putF64(b, tree + 48, 0.5); }), "padding");
+  expectRefused(edited([&](Bytes& b) { putF64(b, tree + 48, nan); }), "padding");
+  expectRefused(edited([&](Bytes& b) { putF32(b, lower_at + 4 * 3, std::numeric_limits<float>::quiet_NaN()); }),
+                "leaf_lower_bound of leaf 3 is nan");
+  expectRefused(edited([&](Bytes& b) { putF32(b, lower_at + 4 * 3, -0.5f); }), "leaf_lower_bound of leaf 3 is -0.5");
+  expectRefused(edited([&](Bytes& b) { putF32(b, corners_at + 32 * 2 + 4 * 5, -std::numeric_limits<float>::infinity()); }),
+                "leaf_corner_distance of leaf 2 corner 5 is -inf");
+  expectRefused(edited([&](Bytes& b) { putF32(b, corners_at, std::numeric_limits<float>::infinity()); }),
+                "leaf_corner_distance of leaf 0 corner 0 is inf");
+  const std::size_t stat = sectionBody(good_, "STAT");
+  expectRefused(edited([&](Bytes& b) { putF64(b, stat + 16, nan); }), "non-finite");
+  expectRefused(edited([&](Bytes& b) { putF64(b, stat + 48, inf); }), "non-finite");
 }
 
 TEST_F(CflFileStructure, MeshDefectsAreNamedAsInValidateMesh) {
@@ -520,94 +969,51 @@ TEST_F(CflFileStructure, MeshDefectsAreNamedAsInValidateMesh) {
 }
 
 TEST_F(CflFileStructure, MissingDuplicateAndUnknownSectionsAreHandled) {
-  // Renaming the statistics section makes it unknown: skipped, so STAT is reported missing.
+  // Renaming a section makes it unknown: skipped, so it is reported missing.
+  for (const char* tag : {"MESH", "TREE", "NODE", "LEAF", "LIST", "LBND", "STAT"}) {
+    const std::size_t header = sectionBody(good_, tag) - 16;
+    expectRefused(edited([&](Bytes& b) { b[header] = 'X'; }), std::string("required section ") + tag + " is missing");
+  }
+  // Renaming TREE to MESH makes MESH appear twice; NODE to LEAF, LEAF twice.
+  const std::size_t tree = sectionBody(good_, "TREE") - 16;
+  expectRefused(edited([&](Bytes& b) { std::memcpy(&b[tree], "MESH", 4); }), "section MESH at byte " + std::to_string(tree) + ": appears twice");
+  const std::size_t leaves = sectionBody(good_, "LEAF") - 16;
+  expectRefused(edited([&](Bytes& b) { std::memcpy(&b[leaves], "NODE", 4); }), "section NODE at byte " + std::to_string(leaves) + ": appears twice");
+  expectRefused(edited([&](Bytes& b) { b[tree + 4] = 1; }), "reserved field");
+  // An extra unknown section, as a later writer may add, is skipped; so are the old GRID and BNDS tags.
+  for (const char* tag : {"NEXT", "GRID", "BNDS"}) {
+    Bytes bytes = good_;
+    const Bytes extra = {static_cast<unsigned char>(tag[0]), static_cast<unsigned char>(tag[1]),
+                         static_cast<unsigned char>(tag[2]), static_cast<unsigned char>(tag[3]),
+                         0, 0, 0, 0, 3, 0, 0, 0, 0, 0, 0, 0, 1, 2, 3};
+    bytes.insert(bytes.end(), extra.begin(), extra.end());
+    putU64(bytes, 16, bytes.size() - 32);
+    detail::resealCflBuffer(bytes.data(), bytes.size());
+    expectSameModel(smallModel(), deserializeCflModel(bytes.data(), bytes.size(), kName));
+  }
+  // Sections in another order load the same model.
+  Bytes reordered(good_.begin(), good_.begin() + 32);
   const std::size_t stat = sectionBody(good_, "STAT") - 16;
-  expectRefused(edited([&](Bytes& b) { b[stat] = 'X'; }), "required section STAT is missing");
-  // Renaming GRID to MESH makes MESH appear twice.
-  const std::size_t grid = sectionBody(good_, "GRID") - 16;
-  expectRefused(edited([&](Bytes& b) { std::memcpy(&b[grid], "MESH", 4); }), "appears twice");
-  expectRefused(edited([&](Bytes& b) { b[grid + 4] = 1; }), "reserved field");
-  // An extra unknown section, as a later writer may add, is skipped.
-  Bytes bytes = good_;
-  const Bytes extra = {'N', 'E', 'X', 'T', 0, 0, 0, 0, 3, 0, 0, 0, 0, 0, 0, 0, 1, 2, 3};
-  bytes.insert(bytes.end(), extra.begin(), extra.end());
-  putU64(bytes, 16, bytes.size() - 32);
-  detail::resealCflBuffer(bytes.data(), bytes.size());
-  expectSameModel(smallModel(), deserializeCflModel(bytes.data(), bytes.size(), kName));
-}
-
-// A version-1 file: the same sections without LBND, lists sorted by id. Made from `model` after clearing its
-// entry bounds (which keeps it valid once its lists are sorted by id).
-Bytes versionOneBytes(CflModel& model) {
-  for (std::size_t l = 0; l + 1 < model.list_offsets.size(); ++l) {
-    std::sort(model.list_triangles.begin() + model.list_offsets[l], model.list_triangles.begin() + model.list_offsets[l + 1]);
-  }
-  std::fill(model.list_entry_bounds.begin(), model.list_entry_bounds.end(), 0);
-  Bytes bytes = serializeCflModel(model);
-  const std::size_t body = sectionBody(bytes, "LBND");
-  const std::size_t length = 16 + getU64(bytes, body - 8);
-  bytes.erase(bytes.begin() + static_cast<std::ptrdiff_t>(body - 16), bytes.begin() + static_cast<std::ptrdiff_t>(body - 16 + length));
-  putU32(bytes, 12, 1);
-  putU64(bytes, 16, bytes.size() - 32);
-  detail::resealCflBuffer(bytes.data(), bytes.size());
-  return bytes;
-}
-
-TEST(CflFile, VersionOneFilesLoadWithZeroEntryBoundsAndAnswerExactly) {
-  CflModel model = build(test::makeTorusKnot(), 7);
-  CflModel expected = model;
-  const Bytes bytes = versionOneBytes(expected);
-  const CflModel loaded = deserializeCflModel(bytes.data(), bytes.size(), kName);
-  expectSameModel(expected, loaded);
-  for (std::uint8_t bound : loaded.list_entry_bounds) ASSERT_EQ(bound, 0);
-  // Bounds of 0 only make the query scan whole lists: the answers stay exact.
-  test::Rng rng(11);
-  const double diagonal = model.geometry.bounds.diagonal();
-  for (int i = 0; i < 20; ++i) {
-    const Eigen::Isometry3d X_WB = test::randomPose(rng, (0.2 + 0.1 * (i % 5)) * diagonal);
-    const double truth = bruteForceDistance(model.geometry, Eigen::Isometry3d::Identity(), model.geometry, X_WB).distance;
-    EXPECT_NEAR(computeDistance(loaded, Eigen::Isometry3d::Identity(), model.geometry, X_WB).distance, truth, 1e-9 * diagonal);
-    EXPECT_NEAR(computeDistance(model, Eigen::Isometry3d::Identity(), model.geometry, X_WB).distance, truth, 1e-9 * diagonal);
-  }
-}
-
-TEST(CflFile, EntryBoundsSectionIsRequiredAndChecked) {
-  CflModel model = smallModel();
-  // A version-2 file without LBND.
-  Bytes bytes = versionOneBytes(model);
-  putU32(bytes, 12, 2);
-  detail::resealCflBuffer(bytes.data(), bytes.size());
-  expectRefused(bytes, "required section LBND is missing");
-  // Bounds out of order inside a list: find a list of two entries or more and raise the first bound.
-  const Bytes good = serializeCflModel(smallModel());
-  const std::size_t body = sectionBody(good, "LBND");
-  std::size_t two = smallModel().list_offsets.size();
-  for (std::size_t l = 0; l + 1 < smallModel().list_offsets.size(); ++l) {
-    if (smallModel().list_offsets[l + 1] - smallModel().list_offsets[l] >= 2) {
-      two = l;
-      break;
-    }
-  }
-  ASSERT_LT(two + 1, smallModel().list_offsets.size());
-  Bytes unsorted = good;
-  const std::size_t entry = body + 8 + smallModel().list_offsets[two];
-  unsorted[entry] = static_cast<unsigned char>(std::max<int>(unsorted[entry + 1], 1) + 1);
-  detail::resealCflBuffer(unsorted.data(), unsorted.size());
-  expectRefused(unsorted, "not sorted by (entry bound, id)");
-  // A count that does not match the lists.
-  Bytes short_count = good;
-  putU64(short_count, body, getU64(good, body) - 1);
-  detail::resealCflBuffer(short_count.data(), short_count.size());
-  expectRefused(short_count, "LBND");
+  reordered.insert(reordered.end(), good_.begin() + static_cast<std::ptrdiff_t>(stat), good_.end());
+  reordered.insert(reordered.end(), good_.begin() + 32, good_.begin() + static_cast<std::ptrdiff_t>(stat));
+  detail::resealCflBuffer(reordered.data(), reordered.size());
+  expectSameModel(smallModel(), deserializeCflModel(reordered.data(), reordered.size(), kName));
 }
 
 TEST(CflFile, SavingAModelThatBreaksAnInvariantIsRefused) {
   CflModel model = smallModel();
-  model.list_triangles[0] = 1 << 20;
-  EXPECT_THROW(serializeCflModel(model), Error);
+  model.regions.list_triangles[0] = 1 << 20;
+  expectModelRefused(model, "triangle id 1048576, out of range");
   model = smallModel();
-  model.voxel_lower_bound.pop_back();
-  EXPECT_THROW(serializeCflModel(model), Error);
+  model.regions.leaf_corner_distance.pop_back();
+  expectSaveRefused(model, "leaf arrays disagree");
+  model = adaptiveModel();
+  model.regions.nodes.pop_back();
+  expectModelRefused(model, "past the");
+  model = adaptiveModel();
+  model.statistics.leaves_per_depth.clear();
+  expectModelRefused(model, "leaves per depth");
+  expectSaveRefused(model, "statistics say leaves per depth [], the regions have [");
 }
 
 TEST(CflFile, FileSystemErrorsNameThePath) {

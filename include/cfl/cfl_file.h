@@ -2,25 +2,29 @@
 /// @file
 /// Saving and loading a built CflModel, so that the expensive precomputation runs once.
 ///
-/// The format (full description, with a byte map, in docs/cfl_file_format.md), version 1:
+/// The format (full description, with a byte map, in docs/cfl_file_format.md), version 3:
 ///
 ///     offset  size  field
 ///          0     8  magic 0x89 'C' 'F' 'L' '\r' '\n' 0x1A '\n'  (PNG-style: catches text-mode mangling)
 ///          8     4  endianness marker 0x01020304, stored as bytes 04 03 02 01
-///         12     4  format version (1)
+///         12     4  format version (3)
 ///         16     8  payload size P in bytes
-///         24     4  CRC-32 (IEEE 802.3, as zlib's crc32) of the P payload bytes
+///         24     4  CRC-32 (IEEE 802.3, zlib's crc32) of the P payload bytes
 ///         28     4  CRC-32 of bytes 0..27 (the header)
 ///         32     P  payload: sections, each a 4-byte ASCII tag, a u32 zero, a u64 length L and L bytes
 ///
-/// Every integer and double is little-endian whatever the host (doubles as their IEEE-754 bit pattern),
-/// written and read byte by byte, so files move between machines. The sections, in this order, are MESH
-/// (vertices, triangles), GRID (origin, voxel size, dims, padding, topology flag), LIST (voxel_list,
-/// list_offsets, list_triangles), BNDS (voxel_lower_bound, corner_distance) and STAT (statistics).
-/// Sections with an unknown tag are skipped, so a later writer can add data that old readers ignore; a
-/// change of meaning bumps the version instead. The Bvh and triangle corners are not stored: loading rebuilds
-/// them with makeMeshModel, which is deterministic, so a loaded model answers every query bit-identically to
-/// the model that was saved.
+/// Every integer, float and double is little-endian whatever the host (floats and doubles as their IEEE-754
+/// bit patterns), so files move between machines. The sections, in this order, are MESH (vertices,
+/// triangles), TREE (the region tree's origin, root_size, root_dims and max_depth, padding, topology flag),
+/// NODE (RegionTree::nodes), LEAF (per leaf: its list, lower bound and eight corner distances), LIST
+/// (list_offsets, list_triangles), LBND (list_entry_bounds) and STAT (statistics, leaves_per_depth and the
+/// coarsened flag included). Sections with an unknown tag are skipped, so a later writer can add data that
+/// old readers ignore; a change of meaning bumps the version instead. The Bvh and triangle corners are not
+/// stored: loading rebuilds them with makeMeshModel, which is deterministic, so a loaded model answers every
+/// query bit-identically to the model that was saved.
+///
+/// Versions 1 and 2 held a uniform voxel grid; they are refused with a message asking for a rebuild (the
+/// regions are derived data, and `cfl build` makes them again from the mesh).
 
 #include "cfl/cfl_model.h"
 
@@ -31,21 +35,34 @@
 
 namespace cfl {
 
-/// The version written by this library. It also reads version 1 files (lists without entry bounds,
-/// loaded with every bound 0: correct, only slower to query).
+/// The version written and read by this library.
 constexpr std::uint32_t kCflFileVersion = 3;
 
-/// The model as the bytes of a version-2 file. O(model size); thread-safe (reads `model` only).
-/// Throws cfl::Error when the model breaks an invariant of CflModel (the loader would refuse the result),
-/// e.g. a list holding a triangle id out of range.
+/// The model as the bytes of a version-3 file. O(model size); thread-safe (reads `model` only).
+/// Throws cfl::Error when the mesh fails validateMesh, or (the message starting "cannot save CFL model: ")
+/// when the model breaks an invariant that the loader checks, so that no file is written that the loader
+/// would refuse: e.g. a list holding a triangle id out of range, or a node pointing back.
 std::vector<unsigned char> serializeCflModel(const CflModel& model);
 
-/// Parses the bytes of a file written by serializeCflModel. Everything is checked before it is used: size,
-/// magic, endianness marker, version, both checksums, every count against the bytes that remain (so a
-/// corrupt count never causes a large allocation), every triangle and list id against its range, offsets
-/// increasing, list contents sorted by (entry bound, id), array sizes against the grid dims, every double finite (and distances
-/// non-negative), the grid against the mesh's bounds, padding and resolution. Any failure throws cfl::Error
-/// whose message starts with `name_for_errors` (usually the file path) and says what is wrong, e.g.
+/// Parses the bytes of a file written by serializeCflModel. Everything is checked before it is used, so
+/// that no file, damaged or hostile, makes a later query crash, hang or read out of bounds:
+/// - the size, magic, endianness marker, version (versions 1 and 2 are refused: "<name>: a version-2 CFL
+///   file (uniform grid) from an earlier cfl: rebuild it with `cfl build`") and both checksums;
+/// - every count against the bytes that remain, before anything is allocated;
+/// - the mesh (validateMesh);
+/// - the root grid: finite origin and far corner, finite positive root_size, root_dims >= 1 whose product
+///   (checked by division, so it cannot overflow) does not exceed the node count, max_depth in [0, 24];
+/// - the tree: every node with children points forward (past itself, past the root cells, with all eight
+///   children inside the array), so that no walk loops; every node but the roots is the child of exactly
+///   one parent; no cell is deeper than max_depth, which is the deepest leaf's depth; every leaf index is
+///   in range and named by exactly one node;
+/// - the leaves: list index in range, lower bound and corner distances finite and >= 0;
+/// - the lists: offsets from 0 to the entry count, increasing, no list empty, triangle ids in range, each
+///   list sorted by (entry bound, id);
+/// - padding finite and >= 1, statistics finite, non-negative and consistent with the tree (leaf count,
+///   leaves per depth, distinct lists).
+/// Any failure throws cfl::Error whose message starts with `name_for_errors` (usually the file path) and
+/// says what is wrong, e.g.
 /// "robot.cfl: checksum mismatch (payload CRC-32 is 0x1c291ca3, header says 0x5d0f4e12): the file is corrupt".
 ///
 /// A checksum guards against accidental corruption only: a file forged to pass it with wrong lists (but valid
@@ -59,11 +76,12 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
 void saveCflModel(const CflModel& model, const std::string& path);
 
 /// Reads a model saved by saveCflModel. Throws cfl::Error naming `path` when the file cannot be read or is
-/// not a valid CFL file of version 1 or 2 (see deserializeCflModel for what is checked).
+/// not a valid version-3 CFL file (see deserializeCflModel for what is checked).
 CflModel loadCflModel(const std::string& path);
 
 namespace detail {
-/// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, initial and final xor 0xFFFFFFFF), as zlib's crc32.
+/// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, initial and final xor 0xFFFFFFFF): zlib's crc32,
+/// for any size (zlib takes 32-bit lengths).
 std::uint32_t crc32(const unsigned char* data, std::size_t size);
 /// Recomputes both checksums of a buffer laid out as a CFL file (no-op when it is shorter than the header).
 /// Lets tests and fuzzers reach the checks behind the checksum with hand-edited files.

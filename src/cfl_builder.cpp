@@ -5,6 +5,11 @@
 #include "detail/box_triangle_bound.h"
 #include "detail/nearest_triangle.h"
 
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
+#include <tbb/task_arena.h>
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -14,6 +19,7 @@
 #include <limits>
 #include <sstream>
 #include <thread>
+#include <utility>
 #include <unordered_map>
 #include <unistd.h>
 
@@ -28,35 +34,28 @@ int workerCount(int requested) {
   return hardware == 0 ? 1 : static_cast<int>(hardware);
 }
 
-// Runs task(item, worker) for item in [0, count) on `threads` workers numbered from 0, the calling thread
-// being worker 0, pulling items from a shared counter so that uneven rows balance out. Only the calling
-// thread reports progress, between its own items, so the callback never runs elsewhere; with one thread
-// nothing is spawned.
-template <typename Task>
-void parallelFor(std::int64_t count, int threads, const std::function<void(double)>& progress, double progress_begin,
-                 double progress_end, Task task) {
-  std::atomic<std::int64_t> next{0};
-  std::atomic<std::int64_t> done{0};
-  auto worker = [&](int worker_index) {
-    for (std::int64_t item; (item = next.fetch_add(1)) < count;) {
-      task(item, worker_index);
-      done.fetch_add(1);
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads && t < count; ++t) pool.emplace_back(worker, t);
-  auto last_report = std::chrono::steady_clock::now();
-  for (std::int64_t item; (item = next.fetch_add(1)) < count;) {
-    task(item, 0);
-    done.fetch_add(1);
-    if (progress && std::chrono::steady_clock::now() - last_report > std::chrono::milliseconds(20)) {
-      progress(progress_begin + (progress_end - progress_begin) * double(done.load()) / double(count));
-      last_report = std::chrono::steady_clock::now();
-    }
+// Runs work() in `arena` and, from the calling thread only (the progress callback's contract), calls
+// report() every 20 ms or so while it runs: the calling thread takes part in the work and reports between
+// its own items, through tick().
+class ProgressTicker {
+ public:
+  ProgressTicker(const std::function<void(double)>& progress, std::function<void()> report)
+      : enabled_(bool(progress)), report_(std::move(report)), caller_(std::this_thread::get_id()),
+        last_(std::chrono::steady_clock::now()) {}
+  void tick() {
+    if (!enabled_ || std::this_thread::get_id() != caller_) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_ < std::chrono::milliseconds(20)) return;
+    last_ = now;
+    report_();
   }
-  for (auto& thread : pool) thread.join();
-  if (progress) progress(progress_end);
-}
+
+ private:
+  bool enabled_;
+  std::function<void()> report_;
+  std::thread::id caller_;
+  std::chrono::steady_clock::time_point last_;
+};
 
 // The directions from any point of a sphere to any point of a ball around p lie in a cone around the axis
 // from the sphere's center to p, of half-angle asin((ball radius + sphere radius) / axis length), provided
@@ -111,10 +110,10 @@ std::int64_t physicalMemoryBytes() {
 // plane it lies beyond the edge's line and outside the Voronoi regions of the other two edges' interiors.
 struct EdgeRegion {
   Eigen::Vector3d a, b, outward, to_d_from_a, to_d_from_b;
-  // Per half-space, how far its linear function may drop from a voxel's center to its lowest corner (half
-  // edge times the 1-norm of the normal) plus the rounding margin: a voxel-sized cube is inside the
-  // half-space exactly when its center clears the half-space by this much.
-  double outward_reach = 0, from_a_reach = 0, from_b_reach = 0;
+  // Per half-space, the 1-norm and 2-norm of its normal: a cube of half edge h is inside the half-space
+  // exactly when its center clears it by h times the 1-norm (the drop to its lowest corner); the 2-norm
+  // scales the rounding margin.
+  Eigen::Vector3d l1_norms, norms;  // outward, to_d_from_a, to_d_from_b
   int neighbours_begin = 0, neighbours_end = 0;  // other triangles sharing the edge, in edge_neighbours
   bool usable = false;
 };
@@ -124,7 +123,7 @@ struct Topology {
   std::vector<int> edge_neighbours;
 };
 
-Topology makeTopology(const MeshModel& geometry, double half, double margin) {
+Topology makeTopology(const MeshModel& geometry) {
   const auto& triangles = geometry.mesh.triangles;
   std::unordered_map<std::uint64_t, std::vector<int>> by_edge;
   auto key = [](int u, int v) { return (std::uint64_t(std::min(u, v)) << 32) | std::uint32_t(std::max(u, v)); };
@@ -150,9 +149,8 @@ Topology makeTopology(const MeshModel& geometry, double half, double margin) {
       region.outward = outward;
       region.to_d_from_a = d - region.a;
       region.to_d_from_b = d - region.b;
-      region.outward_reach = half * outward.cwiseAbs().sum() + margin * outward.norm();
-      region.from_a_reach = half * region.to_d_from_a.cwiseAbs().sum() + margin * region.to_d_from_a.norm();
-      region.from_b_reach = half * region.to_d_from_b.cwiseAbs().sum() + margin * region.to_d_from_b.norm();
+      region.l1_norms = {outward.lpNorm<1>(), region.to_d_from_a.lpNorm<1>(), region.to_d_from_b.lpNorm<1>()};
+      region.norms = {outward.norm(), region.to_d_from_a.norm(), region.to_d_from_b.norm()};
       region.neighbours_begin = int(topology.edge_neighbours.size());
       for (int other : by_edge[key(u, v)]) {
         if (other != t) topology.edge_neighbours.push_back(other);
@@ -164,13 +162,14 @@ Topology makeTopology(const MeshModel& geometry, double half, double margin) {
   return topology;
 }
 
-// Whether all of the voxel of center `center` lies strictly inside the edge's region, with a margin so that
-// rounding never decides. Each half-space is linear, so its lowest value over the cube is at a corner: the
-// center's value minus the reach.
-bool voxelInEdgeRegion(const EdgeRegion& region, const Eigen::Vector3d& center) {
-  return (center - region.a).dot(region.outward) > region.outward_reach &&
-         (center - region.a).dot(region.to_d_from_a) < -region.from_a_reach &&
-         (center - region.b).dot(region.to_d_from_b) < -region.from_b_reach;
+// Whether all of the cube of center `center` and half edge `half` lies strictly inside the edge's region,
+// with a margin so that rounding never decides. Each half-space is linear, so its lowest value over the cube
+// is at a corner: the center's value minus the reach.
+bool cellInEdgeRegion(const EdgeRegion& region, const Eigen::Vector3d& center, double half, double margin) {
+  const Eigen::Vector3d reach = half * region.l1_norms + margin * region.norms;
+  return (center - region.a).dot(region.outward) > reach[0] &&
+         (center - region.a).dot(region.to_d_from_a) < -reach[1] &&
+         (center - region.b).dot(region.to_d_from_b) < -reach[2];
 }
 
 // dmin in units of `unit`, rounded down and saturated, so that unit * result <= dmin (a lower bound).
@@ -179,7 +178,7 @@ std::uint8_t quantizeEntryBound(double d_min, double unit) {
   return static_cast<std::uint8_t>(std::clamp(units, 0.0, 255.0));
 }
 
-// Per-worker scratch of the list pass, reused from voxel to voxel.
+// Per-worker scratch of the list pass, reused from cell to cell.
 struct ListScratch {
   // Topology culling: marks[t] in [last_mark - 3, last_mark] when triangle t is a candidate of the current
   // voxel, saying whether a test excluded it, it stays, may leave or has left; any other value means not a
@@ -192,424 +191,655 @@ struct ListScratch {
   std::vector<double> quick_bounds;      // per list entry: cubeTriangleQuickBound, before the full bound
 };
 
-struct RowLists {
-  std::vector<std::int32_t> ids;      // the row's lists, one after another
-  std::vector<std::uint8_t> bounds;   // per entry of ids: its quantized dmin (CflModel::list_entry_bounds)
-  std::vector<std::uint32_t> counts;  // length of each voxel's list
-  std::vector<double> lower_bounds;   // per voxel
+// Root cells along the longest axis of an adaptive build's box: coarse enough that far space costs little,
+// fine enough that the cells near the mesh spread over the workers.
+constexpr int kAdaptiveRootCells = 16;
+
+// The root grid over `mesh_bounds` grown by (padding - 1) / 2 times the longest extent on every side, with
+// `cells` cubic cells along the longest axis and as many as needed (at least one) along the others.
+RegionTree makeRootGrid(const Aabb& mesh_bounds, int cells, double padding) {
+  if (mesh_bounds.empty() || !mesh_bounds.min.allFinite() || !mesh_bounds.max.allFinite()) {
+    throw Error("the mesh's bounds are empty or not finite");
+  }
+  // A flat or point-like mesh still needs cells of positive size; the floor scales with the coordinates so
+  // that a mesh far from the origin keeps representable cell corners.
+  const double floor = 1e-9 * std::max(1.0, mesh_bounds.max.cwiseAbs().cwiseMax(mesh_bounds.min.cwiseAbs()).maxCoeff());
+  const double longest = std::max(mesh_bounds.size().maxCoeff(), floor);
+  const Eigen::Vector3d extent = mesh_bounds.size().array() + (padding - 1) * longest;
+  RegionTree tree;
+  tree.root_size = extent.maxCoeff() / cells;
+  for (int axis = 0; axis < 3; ++axis) {
+    // Round up so the grid never covers less than the padded box; the slack avoids a layer that rounding
+    // alone would add.
+    tree.root_dims[axis] = std::max(1, static_cast<int>(std::ceil(extent[axis] / tree.root_size - 1e-9)));
+  }
+  const Eigen::Vector3d covered = tree.root_size * Eigen::Vector3d(tree.root_dims[0], tree.root_dims[1], tree.root_dims[2]);
+  tree.origin = mesh_bounds.center() - 0.5 * covered;
+  return tree;
+}
+
+template <class T>
+std::int64_t capacityBytes(const std::vector<T>& v) {
+  return std::int64_t(v.capacity() * sizeof(T));
+}
+
+
+// What every cell's list computation reads.
+struct BuildContext {
+  const MeshModel& geometry;
+  const Topology& topology;
+  bool culling;
+};
+
+// A cell's list, appended to `ids` / `bounds` (bounds in units of size / 32), and its lower bound.
+struct CellListOutput {
+  std::vector<std::int32_t> ids;
+  std::vector<std::uint8_t> bounds;
+  double lower_bound = 0;
+};
+
+// Computes the list of the cube [min_corner, min_corner + size]^3, given the nearest triangle of each of its
+// corners (corner n at min_corner + size (n & 1, (n >> 1) & 1, n >> 2)). For cell V with center c,
+// U = min_k dmax(V, k) over the nearest triangles of the corners and of c is an upper bound on the distance
+// from any point of V to the mesh. Triangle i belongs to the list unless dmin(V, i) > U (a Bvh node whose box
+// is farther than U from V holds none that belong), unless the cone test shows c's nearest triangle strictly
+// closer everywhere in V, and unless topology culling removes it. Appends the list to `out` sorted by
+// (bound, id) and returns its length.
+std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch, const Eigen::Vector3d& min_corner,
+                              double size, const int corner_triangle[8], CellListOutput& out) {
+  const double bound_unit = size / 32;
+  const MeshModel& geometry = context.geometry;
+  const Topology& topology = context.topology;
+  const double half = 0.5 * size;
+  const double half_diagonal = std::sqrt(3.0) * half;
+  const double margin = 1e-9 * size;
+  const Eigen::Vector3d center = min_corner + Eigen::Vector3d::Constant(half);
+  Eigen::Vector3d corners[8];
+  int upper_candidates[9];
+  int upper_candidate_count = 0;
+  for (int n = 0; n < 8; ++n) {
+    corners[n] = min_corner + size * Eigen::Vector3d(n & 1, (n >> 1) & 1, n >> 2);
+    const int t = corner_triangle[n];
+    if (std::find(upper_candidates, upper_candidates + upper_candidate_count, t) ==
+        upper_candidates + upper_candidate_count) {
+      upper_candidates[upper_candidate_count++] = t;
+    }
+  }
+  // The triangle nearest to the center: a candidate for U, and the reference of the cone test below.
+  // The corners' triangles bound the search, but only as a distance just above theirs: the search then
+  // prunes the same nodes it would have pruned anyway and still returns the first nearest triangle in
+  // its visiting order, so ties (a shared vertex is often nearest) break as in a search from infinity.
+  // A tied hint as the reference instead lengthened the bunny's lists slightly.
+  double center_squared = kInfinity;
+  for (int n = 0; n < upper_candidate_count; ++n) {
+    const auto& c = geometry.corners[upper_candidates[n]];
+    center_squared = std::min(center_squared, pointTriangleSquaredDistance(center, c[0], c[1], c[2]));
+  }
+  center_squared = std::nextafter(center_squared * (1 + 1e-12), kInfinity);
+  int center_triangle = -1;
+  detail::nearestTriangle(geometry, center, center_squared, center_triangle);
+  if (center_triangle < 0) {
+    // Nothing was found below the corners' bound: their distances were not finite (coordinates near
+    // the limits of double). Any triangle serves as U's candidate and the cone's reference, as long as
+    // center_squared is its own distance.
+    center_squared = kInfinity;
+    detail::nearestTriangle(geometry, center, center_squared, center_triangle);
+    if (center_triangle < 0) {
+      center_triangle = upper_candidates[0];
+      const auto& c = geometry.corners[center_triangle];
+      center_squared = pointTriangleSquaredDistance(center, c[0], c[1], c[2]);
+    }
+  }
+  if (std::find(upper_candidates, upper_candidates + upper_candidate_count, center_triangle) ==
+      upper_candidates + upper_candidate_count) {
+    upper_candidates[upper_candidate_count++] = center_triangle;
+  }
+  double upper = kInfinity;  // squared
+  for (int n = 0; n < upper_candidate_count; ++n) {
+    const auto& c = geometry.corners[upper_candidates[n]];
+    double farthest = 0;
+    for (int m = 0; m < 8 && farthest < upper; ++m) {
+      farthest = std::max(farthest, pointTriangleSquaredDistance(corners[m], c[0], c[1], c[2]));
+    }
+    upper = std::min(upper, farthest);
+  }
+  // Rounded up: a list may hold one triangle too many, never one too few.
+  const double upper_bound = std::nextafter(std::sqrt(upper), kInfinity) * (1 + 1e-12);
+  const double upper_bound_squared = upper_bound * upper_bound;
+  const double center_distance = std::sqrt(center_squared);
+  // Cone test. For p in the voxel (within half_diagonal of the center), f(p) = dist(p, i) - dist(p, k)
+  // with k = center_triangle changes at most |u_i - u_k| per unit length, u being the unit direction
+  // from a triangle's closest point to p. While the voxel's ball stays clear of a sphere around a
+  // triangle, u lies in that sphere's DirectionCone, so |u_i - u_k|^2 is at most coneChordSquaredBound.
+  // If f(center) > half_diagonal * its root, k is strictly closer than i everywhere in the voxel. Far from
+  // the mesh this drops the wide rim of triangles that the dmin/dmax test alone keeps. Any sphere holding
+  // the triangle serves, so a Bvh node's sphere and its box distance exclude the whole subtree at once.
+  const Eigen::Vector4d& sphere_k = geometry.spheres[center_triangle];
+  const Eigen::Vector3d axis_k = center - sphere_k.head<3>();
+  const double axis_k_length = axis_k.norm();
+  const bool cone_usable = axis_k_length > half_diagonal + sphere_k[3];
+  const DirectionCone cone_k =
+      cone_usable ? makeDirectionCone(axis_k, half_diagonal + sphere_k[3]) : DirectionCone();
+  // Whether k beats every triangle within the sphere (sphere_center, sphere_radius) everywhere in the voxel,
+  // given a lower bound `near` on their distances to the center: whether near - dist(center, k) exceeds
+  // half_diagonal times the chord bound, compared squared. Margin: a few ulps of every term, relative to
+  // the voxel's reach. The chord is at least 2 sin(gamma / 2) >= sin(gamma) for k's half-angle gamma, a
+  // cheap necessary condition first (0.999 keeps it strictly weaker, so it only saves time).
+  const double chord_floor_k = 0.999 * half_diagonal * cone_k.sine;
+  auto coneExcludes = [&](double near, const Eigen::Vector3d& sphere_center, double sphere_radius) {
+    const double spare = near - center_distance - 1e-12 * (center_distance + near + half_diagonal);
+    if (!(spare > chord_floor_k)) return false;
+    const Eigen::Vector3d axis_i = center - sphere_center;
+    const double length_i_squared = axis_i.squaredNorm();
+    const double r_i = half_diagonal + sphere_radius;
+    if (!(length_i_squared > r_i * r_i)) return false;
+    const double chord_squared = coneChordSquaredBound(cone_k, axis_i, length_i_squared, r_i);
+    return spare * spare > half_diagonal * half_diagonal * chord_squared * (1 + 3e-9);
+  };
+
+  // Triangles that may belong: a Bvh walk that skips nodes whose box is farther than U from the voxel's
+  // cube (then dmin > U for all below), or that the cone test excludes as a whole.
+  std::vector<std::int32_t>& candidates = scratch.candidates;
+  candidates.clear();
+  const auto& nodes = geometry.bvh.nodes;
+  int stack[128];  // see detail::nearestTriangle for why this is enough
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const BvhNode& node = nodes[stack[--top]];
+    const Eigen::Vector3d outside =
+        (node.box.min - center).cwiseMax(center - node.box.max).cwiseMax(0.0);
+    if ((outside.array() - half).max(0.0).matrix().squaredNorm() > upper_bound_squared) continue;
+    if (cone_usable && coneExcludes(outside.norm(), node.center, node.radius)) continue;
+    if (node.isLeaf()) {
+      candidates.insert(candidates.end(), geometry.bvh.triangle_ids.begin() + node.first,
+                        geometry.bvh.triangle_ids.begin() + node.first + node.count);
+    } else {
+      stack[top++] = node.first;
+      stack[top++] = node.first + 1;
+    }
+  }
+  const std::uint32_t candidate_count = static_cast<std::uint32_t>(candidates.size());
+
+  // Paper section 3.6, in a form that is provably conservative on any mesh: triangle i may leave the
+  // list when every point of the voxel has its closest point of i on an edge shared with a triangle j
+  // (its witness), so that j is at least as close everywhere. It does leave when some witness stays,
+  // is missing from the list, or has itself left through such a chain. Why that is safe: a triangle
+  // missing from the list is strictly beaten everywhere by another, so for any point p, following
+  // witnesses from one of p's nearest triangles never increases the distance and ends at a triangle
+  // that stays (a missing one would be strictly beaten, so not nearest). Witnesses that only lean on
+  // each other in a cycle all stay. The result is the least fixed point of a monotone rule, so it
+  // does not depend on the order of the list.
+  //
+  // It runs before the exclusion tests, with every candidate counted as listed, and again after them,
+  // with the excluded ones counted as missing: the first round is the cheap one and removes most of the
+  // triangles that the costly tests would otherwise examine, and since it only drops what the rule
+  // drops, the second round reaches the same least fixed point as a single round after the tests.
+  const bool culling = context.culling && candidate_count > 1;
+  std::uint32_t missing = 0, stays = 0, undecided = 0, left = 0;
+  auto propagate = [&](std::uint32_t size) {  // over candidates[0, size)
+    for (bool changed = true; changed;) {
+      changed = false;
+      for (std::uint32_t n = 0; n < size; ++n) {
+        if (scratch.marks[candidates[n]] != undecided) continue;
+        bool drop = false;
+        for (int e = 0; e < 3 && !drop; ++e) {
+          if (!(scratch.edge_masks[n] >> e & 1)) continue;
+          const EdgeRegion& region = topology.edges[candidates[n]][e];
+          for (int m = region.neighbours_begin; m < region.neighbours_end && !drop; ++m) {
+            drop = scratch.marks[topology.edge_neighbours[m]] != undecided;
+          }
+        }
+        if (drop) {
+          scratch.marks[candidates[n]] = left;
+          changed = true;
+        }
+      }
+    }
+  };
+  bool any_droppable = false;
+  if (culling) {
+    if (scratch.marks.empty() || scratch.last_mark > std::numeric_limits<std::uint32_t>::max() - 4) {
+      scratch.marks.assign(geometry.mesh.triangles.size(), 0);
+      scratch.last_mark = 0;
+    }
+    missing = (scratch.last_mark += 4) - 3;  // excluded by a test; any older mark: never a candidate
+    stays = missing + 1;                    // listed, not droppable
+    undecided = missing + 2;                // droppable, not yet shown to leave
+    left = missing + 3;                     // shown to leave
+    scratch.edge_masks.assign(candidate_count, 0);
+    for (std::uint32_t n = 0; n < candidate_count; ++n) {
+      const auto& regions = topology.edges[candidates[n]];
+      for (int e = 0; e < 3; ++e) {
+        if (regions[e].usable && cellInEdgeRegion(regions[e], center, half, margin)) scratch.edge_masks[n] |= 1 << e;
+      }
+      scratch.marks[candidates[n]] = scratch.edge_masks[n] ? undecided : stays;
+      any_droppable = any_droppable || scratch.edge_masks[n];
+    }
+    if (any_droppable) propagate(candidate_count);
+  }
+
+  // The exclusion tests, on what the first round kept. The full separating-axis bound comes after
+  // culling, for the entries that stay: it is the costly test and seldom excludes, so culling sees
+  // those few as listed, which may keep more, never fewer (a witness that is listed or missing is good
+  // either way).
+  std::uint32_t count = 0;
+  scratch.quick_bounds.clear();
+  bool any_excluded = false;
+  for (std::uint32_t n = 0; n < candidate_count; ++n) {
+    const int t = candidates[n];
+    if (culling && scratch.marks[t] == left) continue;
+    const auto& c = geometry.corners[t];
+    Eigen::Vector3d closest;
+    const double d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
+    bool excluded = d_center - half_diagonal > upper_bound;
+    double d_min = 0;
+    if (!excluded) {
+      d_min = detail::cubeTriangleQuickBound(center, half, c[0], c[1], c[2], closest);
+      excluded = d_min > upper_bound;
+    }
+    if (!excluded && cone_usable && t != center_triangle) {
+      const Eigen::Vector4d& sphere_i = geometry.spheres[t];
+      excluded = coneExcludes(d_center, sphere_i.head<3>(), sphere_i[3]);
+    }
+    if (excluded) {
+      if (culling) scratch.marks[t] = missing;
+      any_excluded = true;
+      continue;
+    }
+    candidates[count] = t;  // compacted in place: n >= count
+    if (culling) scratch.edge_masks[count] = scratch.edge_masks[n];
+    scratch.quick_bounds.push_back(d_min);
+    ++count;
+  }
+  if (culling && any_droppable && any_excluded) propagate(count);
+  // What culling kept, through the full bound. The lower bound of the voxel: the closest triangle to any
+  // of its points is listed, so the smallest listed dmin bounds the voxel-mesh distance from below.
+  const std::size_t list_begin = out.ids.size();
+  double lower = kInfinity;
+  for (std::uint32_t n = 0; n < count; ++n) {
+    const int t = candidates[n];
+    if (culling && scratch.marks[t] == left) continue;
+    const auto& c = geometry.corners[t];
+    const double d_min =
+        detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], scratch.quick_bounds[n]);
+    if (d_min > upper_bound) continue;
+    lower = std::min(lower, d_min);
+    out.ids.push_back(t);
+    out.bounds.push_back(quantizeEntryBound(d_min, bound_unit));
+  }
+  count = static_cast<std::uint32_t>(out.ids.size() - list_begin);
+  std::int32_t* list = out.ids.data() + list_begin;
+  std::uint8_t* bounds = out.bounds.data() + list_begin;
+  // The query scans a list in this order and stops at the first entry whose bound reaches its best
+  // distance so far.
+  scratch.sort_keys.clear();
+  for (std::uint32_t n = 0; n < count; ++n) {
+    scratch.sort_keys.push_back(std::uint64_t(bounds[n]) << 32 | std::uint32_t(list[n]));
+  }
+  std::sort(scratch.sort_keys.begin(), scratch.sort_keys.end());
+  for (std::uint32_t n = 0; n < count; ++n) {
+    bounds[n] = static_cast<std::uint8_t>(scratch.sort_keys[n] >> 32);
+    list[n] = static_cast<std::int32_t>(scratch.sort_keys[n] & 0xffffffffu);
+  }
+  // Rounded down, past the rounding of the bounds' sums too, which scales with the coordinates rather than
+  // with the distance: a cell touching the mesh must not get a positive bound from rounding alone.
+  const double rounding = 1e-15 * (center.cwiseAbs().maxCoeff() + size);
+  out.lower_bound = std::max(0.0, std::nextafter(lower, 0.0) * (1 - 1e-12) - rounding);
+  return count;
+
+}
+
+// The 3 x 3 x 3 lattice of a cell being split: its corners, face and edge midpoints and center, point
+// (a, b, c) at min_corner + size / 2 (a, b, c). Nearest triangles and distances of each.
+struct Lattice {
+  int triangle[27];
+  double distance[27];
+  static int index(int a, int b, int c) { return a + 3 * b + 9 * c; }
+};
+
+// The leaves of one root cell's subtree, in depth-first order; children of a node stored consecutively.
+struct Subtree {
+  std::vector<std::uint32_t> nodes;  // nodes[0]: the root cell; first-child values index this vector
+  std::vector<std::uint32_t> list_length;
+  std::vector<std::uint8_t> depth;
+  std::vector<float> lower_bound;
+  std::vector<std::array<float, 8>> corner_distance;
+  CellListOutput lists;  // the leaves' lists, one after another
+};
+
+// Distance from p to the mesh with its nearest triangle, starting from a triangle near p.
+std::pair<double, int> nearestWithHint(const MeshModel& geometry, const Eigen::Vector3d& p, int hint) {
+  double best = kInfinity;
+  int best_triangle = -1;
+  if (hint >= 0) {
+    const auto& c = geometry.corners[hint];
+    best = pointTriangleSquaredDistance(p, c[0], c[1], c[2]);
+    best_triangle = hint;
+  }
+  detail::nearestTriangle(geometry, p, best, best_triangle);
+  return {std::sqrt(best), best_triangle};
+}
+
+// Rounded down to float so that it stays a lower bound however it was rounded on the way.
+float lowerFloat(double x) {
+  if (!(x < double(std::numeric_limits<float>::max()))) return std::numeric_limits<float>::max();
+  float f = static_cast<float>(x);
+  while (double(f) > x) f = std::nextafter(f, 0.0f);
+  return f;
+}
+
+// When to split a cell: its list is longer than kListTarget, it is larger than kSmallestCell times the mean
+// edge of its listed triangles (the uniform grid's tuned voxel was 1.25 mean edges; smaller cells would not
+// shorten a list of triangles around one vertex, and would multiply the cells a query visits), and it is
+// larger than kFarCellRatio times its distance from the mesh (far away, a list shortens only in cells that
+// shrink with the distance, and far cells serve only far queries, which the Bvh bounds mostly answer).
+constexpr std::uint32_t kListTarget = 8;
+constexpr double kSmallestCell = 1.25;
+constexpr double kFarCellRatio = 1.0;  // cells no larger than this times their distance stay whole
+constexpr int kDeepest = 20;           // levels below the root; RegionTree::forEachLeafInBox's stack allows 24
+
+// Shared across the root cells' builds: the bytes committed so far, against the memory limit.
+struct Budget {
+  std::atomic<std::int64_t> bytes{0};
+  std::int64_t limit = 0;
+  std::atomic<bool> exceeded{false};
+};
+
+class SubtreeBuilder {
+ public:
+  SubtreeBuilder(const BuildContext& context, const std::vector<double>& triangle_edge, Budget& budget,
+                 bool adaptive)
+      : context_(context), triangle_edge_(triangle_edge), budget_(budget), adaptive_(adaptive) {}
+
+  // Builds the cell at `slot` of out.nodes and, when it splits, its descendants.
+  void build(ListScratch& scratch, const Eigen::Vector3d& min_corner, double size, int depth,
+             const double corner_distance[8], const int corner_triangle[8], std::uint32_t slot, Subtree& out) const {
+    const std::size_t begin = out.lists.ids.size();
+    const std::uint32_t length = computeCellList(context_, scratch, min_corner, size, corner_triangle, out.lists);
+    double lowest_corner = kInfinity;
+    for (int n = 0; n < 8; ++n) lowest_corner = std::min(lowest_corner, corner_distance[n]);
+    if (shouldSplit(out, begin, length, size, depth, lowest_corner)) {
+      out.lists.ids.resize(begin);
+      out.lists.bounds.resize(begin);
+      split(scratch, min_corner, size, depth, corner_distance, corner_triangle, slot, out);
+      return;
+    }
+    const std::uint32_t leaf = static_cast<std::uint32_t>(out.list_length.size());
+    out.nodes[slot] = RegionTree::kLeafBit | leaf;
+    out.list_length.push_back(length);
+    out.depth.push_back(static_cast<std::uint8_t>(depth));
+    out.lower_bound.push_back(lowerFloat(out.lists.lower_bound));
+    std::array<float, 8> corners;
+    for (int n = 0; n < 8; ++n) corners[n] = lowerFloat(corner_distance[n]);
+    out.corner_distance.push_back(corners);
+    budget_.bytes += std::int64_t(kLeafBytes + length * 5);
+  }
+
+ private:
+  // A leaf's own arrays and its node, not counting its list.
+  static constexpr std::int64_t kLeafBytes =
+      sizeof(std::uint32_t) * 2 + sizeof(float) + sizeof(std::array<float, 8>);
+
+  bool shouldSplit(const Subtree& out, std::size_t begin, std::uint32_t length, double size, int depth,
+                   double lowest_corner) const {
+    if (!adaptive_ || length <= kListTarget || depth >= kDeepest) return false;
+    // The distance from the cell to the mesh is at least the lowest corner's minus the cell's diagonal.
+    const double distance = lowest_corner - std::sqrt(3.0) * size;
+    if (size <= kFarCellRatio * distance) return false;
+    double edge = 0;
+    for (std::size_t n = begin; n < begin + length; ++n) edge += triangle_edge_[out.lists.ids[n]];
+    if (size <= kSmallestCell * edge / length) return false;
+    if (budget_.bytes.load(std::memory_order_relaxed) > budget_.limit) {
+      budget_.exceeded = true;
+      return false;
+    }
+    return true;
+  }
+
+  void split(ListScratch& scratch, const Eigen::Vector3d& min_corner, double size, int depth,
+             const double corner_distance[8], const int corner_triangle[8], std::uint32_t slot, Subtree& out) const {
+    Lattice lattice;
+    const double half = 0.5 * size;
+    for (int c = 0; c < 3; ++c) {
+      for (int b = 0; b < 3; ++b) {
+        for (int a = 0; a < 3; ++a) {
+          const int n = Lattice::index(a, b, c);
+          if (a != 1 && b != 1 && c != 1) {  // a corner of the cell: known
+            const int corner = (a / 2) | (b / 2) << 1 | (c / 2) << 2;
+            lattice.distance[n] = corner_distance[corner];
+            lattice.triangle[n] = corner_triangle[corner];
+            continue;
+          }
+          const int hint = corner_triangle[(a / 2) | (b / 2) << 1 | (c / 2) << 2];
+          const auto [distance, triangle] =
+              nearestWithHint(context_.geometry, min_corner + half * Eigen::Vector3d(a, b, c), hint);
+          lattice.distance[n] = std::nextafter(distance, 0.0);
+          lattice.triangle[n] = triangle;
+        }
+      }
+    }
+    const std::uint32_t first = static_cast<std::uint32_t>(out.nodes.size());
+    out.nodes[slot] = first;
+    out.nodes.resize(first + 8);
+    budget_.bytes += 8 * std::int64_t(sizeof(std::uint32_t));
+    for (int octant = 0; octant < 8; ++octant) {
+      const int ox = octant & 1, oy = (octant >> 1) & 1, oz = octant >> 2;
+      double child_distance[8];
+      int child_triangle[8];
+      for (int n = 0; n < 8; ++n) {
+        const int index = Lattice::index(ox + (n & 1), oy + ((n >> 1) & 1), oz + (n >> 2));
+        child_distance[n] = lattice.distance[index];
+        child_triangle[n] = lattice.triangle[index];
+      }
+      build(scratch, min_corner + half * Eigen::Vector3d(ox, oy, oz), half, depth + 1, child_distance,
+            child_triangle, first + octant, out);
+    }
+  }
+
+  const BuildContext& context_;
+  const std::vector<double>& triangle_edge_;
+  Budget& budget_;
+  bool adaptive_;
 };
 
 }  // namespace
 
-int automaticResolution(const TriangleMesh& mesh, double padding) {
-  validateMesh(mesh);
-  double edge_sum = 0;
-  for (const auto& t : mesh.triangles) {
-    for (int e = 0; e < 3; ++e) edge_sum += (mesh.vertices[t[e]] - mesh.vertices[t[(e + 1) % 3]]).norm();
-  }
-  const double mean_edge = edge_sum / (3.0 * mesh.triangles.size());
-  const double longest = boundingBox(mesh).size().maxCoeff() * std::max(1.0, padding);
-  if (!(mean_edge > 0)) return 8;
-  // Voxels of 1.25 mean edges: short-range queries scan the lists of the voxels a triangle of B touches, and
-  // finer voxels hold fewer triangles within the prune threshold. Against 2 mean edges (the rule until
-  // this commit), instructions per query on 200 poses fell 15% to 20% on the bunny (resolution 39 -> 62)
-  // from 0.5% to 50% of the diagonal, about 10% on wuson and 15% on the torus knot (-> 96, the cap);
-  // beyond the grid nothing changes (callgrind, same poses). The cost, one run each: the bunny built in
-  // 2.07 s instead of 0.78 s and takes 16.3 MB instead of 9.0 MB; wuson 1.17 s and 14.0 MB, the knot 4.14 s
-  // and 30.4 MB. Finer voxels pay less and less (bunny 52 -> 64: 5% fewer instructions).
-  constexpr double kVoxelMeanEdges = 1.25;
-  const double resolution = longest / (kVoxelMeanEdges * mean_edge);
-  const double finest = std::clamp(std::round(32 * padding), 64.0, 96.0);
-  return static_cast<int>(std::clamp(std::round(resolution), 8.0, finest));
-}
-
 CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   if (options.resolution < 0) {
-    throw Error("resolution must be >= 1 (or 0 for automatic), got " + std::to_string(options.resolution));
+    throw Error("resolution must be >= 1 (or 0 for adaptive regions), got " + std::to_string(options.resolution));
   }
   if (!std::isfinite(options.padding) || options.padding < 1.0) {
     std::ostringstream message;
     message << "padding must be a finite factor >= 1, got " << options.padding;
     throw Error(message.str());
   }
+  if (options.memory_limit < 0) {
+    throw Error("memory_limit must be >= 0 (0: half of physical memory), got " + std::to_string(options.memory_limit));
+  }
   CflModel model;
   model.geometry = makeMeshModel(std::move(mesh));
   const MeshModel& geometry = model.geometry;
-  const int resolution =
-      options.resolution > 0 ? options.resolution : automaticResolution(geometry.mesh, options.padding);
-  model.grid = makeVoxelGrid(geometry.bounds, resolution, options.padding);
   model.padding = options.padding;
   model.topology_culling = options.topology_culling;
-  const VoxelGrid& grid = model.grid;
-
-  const std::int64_t voxel_count = grid.voxelCount();
-  const std::int64_t corner_count = grid.cornerCount();
-  // The lists average a few entries; the per-voxel and per-corner arrays are the floor.
-  const std::int64_t floor_bytes = voxel_count * std::int64_t(sizeof(std::uint32_t) + sizeof(double)) +
-                                   corner_count * std::int64_t(sizeof(double) + sizeof(int));
-  if (voxel_count > std::numeric_limits<std::uint32_t>::max() / 2 || floor_bytes > physicalMemoryBytes() / 2) {
+  RegionTree& tree = model.regions;
+  const bool adaptive = options.resolution == 0;
+  // Adaptive: a coarse root grid whose cells split where needed; uniform: the paper's grid, no splits.
+  tree = makeRootGrid(geometry.bounds, adaptive ? kAdaptiveRootCells : options.resolution, options.padding);
+  const std::int64_t root_count = tree.rootCount();
+  const std::int64_t memory_limit = options.memory_limit > 0 ? options.memory_limit : physicalMemoryBytes() / 2;
+  // Every root cell costs its node, its corners and its leaf arrays at the least.
+  const std::int64_t floor_bytes = root_count * std::int64_t(sizeof(std::uint32_t) * 3 + sizeof(float) * 9);
+  if (root_count > std::numeric_limits<std::uint32_t>::max() / 4 || floor_bytes > memory_limit) {
     std::ostringstream message;
-    message << "resolution " << resolution << " needs " << grid.dims[0] << " x " << grid.dims[1] << " x " << grid.dims[2]
-            << " = " << voxel_count << " voxels and at least " << floor_bytes << " bytes, more than half of this machine's "
-            << physicalMemoryBytes() << " bytes of memory; use a smaller resolution";
+    message << "resolution " << options.resolution << " needs " << tree.root_dims[0] << " x " << tree.root_dims[1]
+            << " x " << tree.root_dims[2] << " = " << root_count << " cells and at least " << floor_bytes
+            << " bytes, more than the memory limit of " << memory_limit << " bytes; use a smaller resolution";
     throw Error(message.str());
   }
-
   const int threads = workerCount(options.threads);
-  const double half = 0.5 * grid.voxel_size;
-  const Topology topology =
-      options.topology_culling ? makeTopology(geometry, half, 1e-9 * grid.voxel_size) : Topology();
+  const Topology topology = options.topology_culling ? makeTopology(geometry) : Topology();
+  const BuildContext context{geometry, topology, options.topology_culling};
+  std::vector<double> triangle_edge(geometry.corners.size());
+  for (std::size_t t = 0; t < triangle_edge.size(); ++t) {
+    const auto& c = geometry.corners[t];
+    triangle_edge[t] = ((c[1] - c[0]).norm() + (c[2] - c[1]).norm() + (c[0] - c[2]).norm()) / 3;
+  }
   const auto& progress = options.progress;
 
-  // 1. Distance field at the grid corners, with the nearest triangle of each. Rows are walked in order so
-  //    that each corner starts from its neighbour's nearest triangle, which usually is its own.
-  model.corner_distance.resize(corner_count);
-  std::vector<int> corner_triangle(corner_count, 0);
-  const int corner_rows = (grid.dims[1] + 1) * (grid.dims[2] + 1);
-  parallelFor(corner_rows, threads, progress, 0.0, 0.2, [&](std::int64_t row, int) {
-    const int j = static_cast<int>(row % (grid.dims[1] + 1));
-    const int k = static_cast<int>(row / (grid.dims[1] + 1));
-    int hint = -1;
-    for (int i = 0; i <= grid.dims[0]; ++i) {
-      const Eigen::Vector3d p = grid.cornerPosition(i, j, k);
-      double best = kInfinity;
-      int best_triangle = -1;
-      if (hint >= 0) {
-        const auto& c = geometry.corners[hint];
-        best = pointTriangleSquaredDistance(p, c[0], c[1], c[2]);
-        best_triangle = hint;
+  // 1. The distance field at the root grid's corners, with the nearest triangle of each. Rows are walked in
+  //    order so that each corner starts from its neighbour's nearest triangle, which usually is its own.
+  const int corner_dims[3] = {tree.root_dims[0] + 1, tree.root_dims[1] + 1, tree.root_dims[2] + 1};
+  const std::int64_t corner_count = std::int64_t(corner_dims[0]) * corner_dims[1] * corner_dims[2];
+  std::vector<double> root_corner_distance(corner_count);
+  std::vector<int> root_corner_triangle(corner_count, -1);
+  auto cornerIndex = [&](int i, int j, int k) { return i + std::int64_t(corner_dims[0]) * (j + std::int64_t(corner_dims[1]) * k); };
+  tbb::task_arena arena(threads);
+  std::atomic<std::int64_t> done{0};
+  auto report = [&](double begin, double end, std::int64_t total) {
+    progress(begin + (end - begin) * double(done.load()) / double(std::max<std::int64_t>(total, 1)));
+  };
+  const std::int64_t corner_rows = std::int64_t(corner_dims[1]) * corner_dims[2];
+  ProgressTicker corner_ticker(progress, [&] { report(0.0, 0.1, corner_rows); });
+  arena.execute([&] {
+    tbb::parallel_for(std::int64_t(0), corner_rows, [&](std::int64_t row) {
+      const int j = static_cast<int>(row % corner_dims[1]);
+      const int k = static_cast<int>(row / corner_dims[1]);
+      int hint = -1;
+      for (int i = 0; i < corner_dims[0]; ++i) {
+        const auto [distance, triangle] =
+            nearestWithHint(geometry, tree.origin + tree.root_size * Eigen::Vector3d(i, j, k), hint);
+        root_corner_distance[cornerIndex(i, j, k)] = std::nextafter(distance, 0.0);
+        root_corner_triangle[cornerIndex(i, j, k)] = triangle;
+        hint = triangle;
       }
-      detail::nearestTriangle(geometry, p, best, best_triangle);
-      const std::int64_t index = grid.cornerIndex(i, j, k);
-      // Rounded down so that it stays a lower bound however it was rounded on the way.
-      model.corner_distance[index] = std::nextafter(std::sqrt(best), 0.0);
-      corner_triangle[index] = best_triangle;
-      hint = best_triangle;
-    }
+      ++done;
+      corner_ticker.tick();
+    });
   });
 
-  // 2. The lists. For voxel V with center c, U = min_k dmax(V, k) over the nearest triangles of the corners
-  //    and of c is an upper bound on the distance from any point of V to the mesh. Triangle i belongs to the
-  //    list unless dmin(V, i) > U (a Bvh node whose box is farther than U from V holds none that belong),
-  //    unless the cone test shows c's nearest triangle strictly closer everywhere in V, and unless
-  //    topology culling removes it.
-  const int rows = grid.dims[1] * grid.dims[2];
-  std::vector<RowLists> row_lists(rows);
-  const double half_diagonal = std::sqrt(3.0) * half;
-  const double bound_unit = model.entryBoundUnit();
-  std::vector<ListScratch> list_scratch(threads);
-  parallelFor(rows, threads, progress, 0.2, 0.95, [&](std::int64_t row, int worker) {
-    const int j = static_cast<int>(row % grid.dims[1]);
-    const int k = static_cast<int>(row / grid.dims[1]);
-    RowLists& out = row_lists[row];
-    ListScratch& scratch = list_scratch[worker];
-    out.counts.reserve(grid.dims[0]);
-    out.lower_bounds.reserve(grid.dims[0]);
-    for (int i = 0; i < grid.dims[0]; ++i) {
-      const Eigen::Vector3d center = grid.voxelCenter(i, j, k);
-      Eigen::Vector3d corners[8];
-      int upper_candidates[9];
-      int upper_candidate_count = 0;
+  // 2. Each root cell's subtree, in parallel: work stealing balances the cells near the surface, which split
+  //    deep, against the far ones, which stay whole.
+  Budget budget;
+  budget.limit = memory_limit;
+  std::vector<Subtree> subtrees(root_count);
+  tbb::enumerable_thread_specific<ListScratch> scratches;
+  const SubtreeBuilder builder(context, triangle_edge, budget, adaptive);
+  done = 0;
+  ProgressTicker cell_ticker(progress, [&] { report(0.1, 0.95, root_count); });
+  arena.execute([&] {
+    tbb::parallel_for(std::int64_t(0), root_count, [&](std::int64_t r) {
+      const int i = static_cast<int>(r % tree.root_dims[0]);
+      const int j = static_cast<int>((r / tree.root_dims[0]) % tree.root_dims[1]);
+      const int k = static_cast<int>(r / (std::int64_t(tree.root_dims[0]) * tree.root_dims[1]));
+      double corner_distance[8];
+      int corner_triangle[8];
       for (int n = 0; n < 8; ++n) {
-        const int ci = i + (n & 1), cj = j + ((n >> 1) & 1), ck = k + ((n >> 2) & 1);
-        corners[n] = grid.cornerPosition(ci, cj, ck);
-        const int t = corner_triangle[grid.cornerIndex(ci, cj, ck)];
-        if (std::find(upper_candidates, upper_candidates + upper_candidate_count, t) ==
-            upper_candidates + upper_candidate_count) {
-          upper_candidates[upper_candidate_count++] = t;
-        }
+        const std::int64_t c = cornerIndex(i + (n & 1), j + ((n >> 1) & 1), k + (n >> 2));
+        corner_distance[n] = root_corner_distance[c];
+        corner_triangle[n] = root_corner_triangle[c];
       }
-      // The triangle nearest to the center: a candidate for U, and the reference of the cone test below.
-      // The corners' triangles bound the search, but only as a distance just above theirs: the search then
-      // prunes the same nodes it would have pruned anyway and still returns the first nearest triangle in
-      // its visiting order, so ties (a shared vertex is often nearest) break as in a search from infinity.
-      // A tied hint as the reference instead lengthened the bunny's lists slightly.
-      double center_squared = kInfinity;
-      for (int n = 0; n < upper_candidate_count; ++n) {
-        const auto& c = geometry.corners[upper_candidates[n]];
-        center_squared = std::min(center_squared, pointTriangleSquaredDistance(center, c[0], c[1], c[2]));
-      }
-      center_squared = std::nextafter(center_squared * (1 + 1e-12), kInfinity);
-      int center_triangle = -1;
-      detail::nearestTriangle(geometry, center, center_squared, center_triangle);
-      if (center_triangle < 0) {
-        // Nothing was found below the corners' bound: their distances were not finite (coordinates near
-        // the limits of double). Any triangle serves as U's candidate and the cone's reference, as long as
-        // center_squared is its own distance.
-        center_squared = kInfinity;
-        detail::nearestTriangle(geometry, center, center_squared, center_triangle);
-        if (center_triangle < 0) {
-          center_triangle = upper_candidates[0];
-          const auto& c = geometry.corners[center_triangle];
-          center_squared = pointTriangleSquaredDistance(center, c[0], c[1], c[2]);
-        }
-      }
-      if (std::find(upper_candidates, upper_candidates + upper_candidate_count, center_triangle) ==
-          upper_candidates + upper_candidate_count) {
-        upper_candidates[upper_candidate_count++] = center_triangle;
-      }
-      double upper = kInfinity;  // squared
-      for (int n = 0; n < upper_candidate_count; ++n) {
-        const auto& c = geometry.corners[upper_candidates[n]];
-        double farthest = 0;
-        for (int m = 0; m < 8 && farthest < upper; ++m) {
-          farthest = std::max(farthest, pointTriangleSquaredDistance(corners[m], c[0], c[1], c[2]));
-        }
-        upper = std::min(upper, farthest);
-      }
-      // Rounded up: a list may hold one triangle too many, never one too few.
-      const double upper_bound = std::nextafter(std::sqrt(upper), kInfinity) * (1 + 1e-12);
-      const double upper_bound_squared = upper_bound * upper_bound;
-      const double center_distance = std::sqrt(center_squared);
-      // Cone test. For p in the voxel (within half_diagonal of the center), f(p) = dist(p, i) - dist(p, k)
-      // with k = center_triangle changes at most |u_i - u_k| per unit length, u being the unit direction
-      // from a triangle's closest point to p. While the voxel's ball stays clear of a sphere around a
-      // triangle, u lies in that sphere's DirectionCone, so |u_i - u_k|^2 is at most coneChordSquaredBound.
-      // If f(center) > half_diagonal * its root, k is strictly closer than i everywhere in the voxel. Far from
-      // the mesh this drops the wide rim of triangles that the dmin/dmax test alone keeps. Any sphere holding
-      // the triangle serves, so a Bvh node's sphere and its box distance exclude the whole subtree at once.
-      const Eigen::Vector4d& sphere_k = geometry.spheres[center_triangle];
-      const Eigen::Vector3d axis_k = center - sphere_k.head<3>();
-      const double axis_k_length = axis_k.norm();
-      const bool cone_usable = axis_k_length > half_diagonal + sphere_k[3];
-      const DirectionCone cone_k =
-          cone_usable ? makeDirectionCone(axis_k, half_diagonal + sphere_k[3]) : DirectionCone();
-      // Whether k beats every triangle within the sphere (sphere_center, sphere_radius) everywhere in the voxel,
-      // given a lower bound `near` on their distances to the center: whether near - dist(center, k) exceeds
-      // half_diagonal times the chord bound, compared squared. Margin: a few ulps of every term, relative to
-      // the voxel's reach. The chord is at least 2 sin(gamma / 2) >= sin(gamma) for k's half-angle gamma, a
-      // cheap necessary condition first (0.999 keeps it strictly weaker, so it only saves time).
-      const double chord_floor_k = 0.999 * half_diagonal * cone_k.sine;
-      auto coneExcludes = [&](double near, const Eigen::Vector3d& sphere_center, double sphere_radius) {
-        const double spare = near - center_distance - 1e-12 * (center_distance + near + half_diagonal);
-        if (!(spare > chord_floor_k)) return false;
-        const Eigen::Vector3d axis_i = center - sphere_center;
-        const double length_i_squared = axis_i.squaredNorm();
-        const double r_i = half_diagonal + sphere_radius;
-        if (!(length_i_squared > r_i * r_i)) return false;
-        const double chord_squared = coneChordSquaredBound(cone_k, axis_i, length_i_squared, r_i);
-        return spare * spare > half_diagonal * half_diagonal * chord_squared * (1 + 3e-9);
-      };
-
-      // Triangles that may belong: a Bvh walk that skips nodes whose box is farther than U from the voxel's
-      // cube (then dmin > U for all below), or that the cone test excludes as a whole.
-      std::vector<std::int32_t>& candidates = scratch.candidates;
-      candidates.clear();
-      const auto& nodes = geometry.bvh.nodes;
-      int stack[128];  // see detail::nearestTriangle for why this is enough
-      int top = 0;
-      stack[top++] = 0;
-      while (top > 0) {
-        const BvhNode& node = nodes[stack[--top]];
-        const Eigen::Vector3d outside =
-            (node.box.min - center).cwiseMax(center - node.box.max).cwiseMax(0.0);
-        if ((outside.array() - half).max(0.0).matrix().squaredNorm() > upper_bound_squared) continue;
-        if (cone_usable && coneExcludes(outside.norm(), node.center, node.radius)) continue;
-        if (node.isLeaf()) {
-          candidates.insert(candidates.end(), geometry.bvh.triangle_ids.begin() + node.first,
-                            geometry.bvh.triangle_ids.begin() + node.first + node.count);
-        } else {
-          stack[top++] = node.first;
-          stack[top++] = node.first + 1;
-        }
-      }
-      const std::uint32_t candidate_count = static_cast<std::uint32_t>(candidates.size());
-
-      // Paper section 3.6, in a form that is provably conservative on any mesh: triangle i may leave the
-      // list when every point of the voxel has its closest point of i on an edge shared with a triangle j
-      // (its witness), so that j is at least as close everywhere. It does leave when some witness stays,
-      // is missing from the list, or has itself left through such a chain. Why that is safe: a triangle
-      // missing from the list is strictly beaten everywhere by another, so for any point p, following
-      // witnesses from one of p's nearest triangles never increases the distance and ends at a triangle
-      // that stays (a missing one would be strictly beaten, so not nearest). Witnesses that only lean on
-      // each other in a cycle all stay. The result is the least fixed point of a monotone rule, so it
-      // does not depend on the order of the list.
-      //
-      // It runs before the exclusion tests, with every candidate counted as listed, and again after them,
-      // with the excluded ones counted as missing: the first round is the cheap one and removes most of the
-      // triangles that the costly tests would otherwise examine, and since it only drops what the rule
-      // drops, the second round reaches the same least fixed point as a single round after the tests.
-      const bool culling = options.topology_culling && candidate_count > 1;
-      std::uint32_t missing = 0, stays = 0, undecided = 0, left = 0;
-      auto propagate = [&](std::uint32_t size) {  // over candidates[0, size)
-        for (bool changed = true; changed;) {
-          changed = false;
-          for (std::uint32_t n = 0; n < size; ++n) {
-            if (scratch.marks[candidates[n]] != undecided) continue;
-            bool drop = false;
-            for (int e = 0; e < 3 && !drop; ++e) {
-              if (!(scratch.edge_masks[n] >> e & 1)) continue;
-              const EdgeRegion& region = topology.edges[candidates[n]][e];
-              for (int m = region.neighbours_begin; m < region.neighbours_end && !drop; ++m) {
-                drop = scratch.marks[topology.edge_neighbours[m]] != undecided;
-              }
-            }
-            if (drop) {
-              scratch.marks[candidates[n]] = left;
-              changed = true;
-            }
-          }
-        }
-      };
-      bool any_droppable = false;
-      if (culling) {
-        if (scratch.marks.empty() || scratch.last_mark > std::numeric_limits<std::uint32_t>::max() - 4) {
-          scratch.marks.assign(geometry.mesh.triangles.size(), 0);
-          scratch.last_mark = 0;
-        }
-        missing = (scratch.last_mark += 4) - 3;  // excluded by a test; any older mark: never a candidate
-        stays = missing + 1;                    // listed, not droppable
-        undecided = missing + 2;                // droppable, not yet shown to leave
-        left = missing + 3;                     // shown to leave
-        scratch.edge_masks.assign(candidate_count, 0);
-        for (std::uint32_t n = 0; n < candidate_count; ++n) {
-          const auto& regions = topology.edges[candidates[n]];
-          for (int e = 0; e < 3; ++e) {
-            if (regions[e].usable && voxelInEdgeRegion(regions[e], center)) scratch.edge_masks[n] |= 1 << e;
-          }
-          scratch.marks[candidates[n]] = scratch.edge_masks[n] ? undecided : stays;
-          any_droppable = any_droppable || scratch.edge_masks[n];
-        }
-        if (any_droppable) propagate(candidate_count);
-      }
-
-      // The exclusion tests, on what the first round kept. The full separating-axis bound comes after
-      // culling, for the entries that stay: it is the costly test and seldom excludes, so culling sees
-      // those few as listed, which may keep more, never fewer (a witness that is listed or missing is good
-      // either way).
-      std::uint32_t count = 0;
-      scratch.quick_bounds.clear();
-      bool any_excluded = false;
-      for (std::uint32_t n = 0; n < candidate_count; ++n) {
-        const int t = candidates[n];
-        if (culling && scratch.marks[t] == left) continue;
-        const auto& c = geometry.corners[t];
-        Eigen::Vector3d closest;
-        const double d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
-        bool excluded = d_center - half_diagonal > upper_bound;
-        double d_min = 0;
-        if (!excluded) {
-          d_min = detail::cubeTriangleQuickBound(center, half, c[0], c[1], c[2], closest);
-          excluded = d_min > upper_bound;
-        }
-        if (!excluded && cone_usable && t != center_triangle) {
-          const Eigen::Vector4d& sphere_i = geometry.spheres[t];
-          excluded = coneExcludes(d_center, sphere_i.head<3>(), sphere_i[3]);
-        }
-        if (excluded) {
-          if (culling) scratch.marks[t] = missing;
-          any_excluded = true;
-          continue;
-        }
-        candidates[count] = t;  // compacted in place: n >= count
-        if (culling) scratch.edge_masks[count] = scratch.edge_masks[n];
-        scratch.quick_bounds.push_back(d_min);
-        ++count;
-      }
-      if (culling && any_droppable && any_excluded) propagate(count);
-      // What culling kept, through the full bound. The lower bound of the voxel: the closest triangle to any
-      // of its points is listed, so the smallest listed dmin bounds the voxel-mesh distance from below.
-      const std::size_t list_begin = out.ids.size();
-      double lower = kInfinity;
-      for (std::uint32_t n = 0; n < count; ++n) {
-        const int t = candidates[n];
-        if (culling && scratch.marks[t] == left) continue;
-        const auto& c = geometry.corners[t];
-        const double d_min =
-            detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], scratch.quick_bounds[n]);
-        if (d_min > upper_bound) continue;
-        lower = std::min(lower, d_min);
-        out.ids.push_back(t);
-        out.bounds.push_back(quantizeEntryBound(d_min, bound_unit));
-      }
-      count = static_cast<std::uint32_t>(out.ids.size() - list_begin);
-      std::int32_t* list = out.ids.data() + list_begin;
-      std::uint8_t* bounds = out.bounds.data() + list_begin;
-      // The query scans a list in this order and stops at the first entry whose bound reaches its best
-      // distance so far.
-      scratch.sort_keys.clear();
-      for (std::uint32_t n = 0; n < count; ++n) {
-        scratch.sort_keys.push_back(std::uint64_t(bounds[n]) << 32 | std::uint32_t(list[n]));
-      }
-      std::sort(scratch.sort_keys.begin(), scratch.sort_keys.end());
-      for (std::uint32_t n = 0; n < count; ++n) {
-        bounds[n] = static_cast<std::uint8_t>(scratch.sort_keys[n] >> 32);
-        list[n] = static_cast<std::int32_t>(scratch.sort_keys[n] & 0xffffffffu);
-      }
-      out.counts.push_back(count);
-      out.lower_bounds.push_back(std::nextafter(lower, 0.0) * (1 - 1e-12));
-    }
+      Subtree& out = subtrees[r];
+      out.nodes.assign(1, 0);
+      builder.build(scratches.local(), tree.origin + tree.root_size * Eigen::Vector3d(i, j, k),
+                                    tree.root_size, 0, corner_distance, corner_triangle, 0, out);
+      ++done;
+      cell_ticker.tick();
+    }, tbb::simple_partitioner());
   });
+  root_corner_distance = {};
+  root_corner_triangle = {};
 
-  // 3. Flatten in voxel order, storing identical lists once.
-  model.voxel_list.resize(voxel_count);
-  model.voxel_lower_bound.resize(voxel_count);
-  model.list_offsets.assign(1, 0);
+  // 3. Flatten: root cells first, then each root cell's descendants in turn; identical lists (same ids,
+  //    bounds and depth, so the bounds' unit agrees) stored once.
+  std::int64_t node_count = root_count, leaf_count = 0;
+  for (const Subtree& subtree : subtrees) {
+    node_count += std::int64_t(subtree.nodes.size()) - 1;
+    leaf_count += std::int64_t(subtree.list_length.size());
+  }
+  if (node_count >= std::int64_t(RegionTree::kLeafBit) || leaf_count >= std::int64_t(RegionTree::kLeafBit)) {
+    throw Error("the regions need " + std::to_string(node_count) + " cells, more than a RegionTree indexes");
+  }
+  tree.nodes.assign(root_count, 0);
+  tree.nodes.reserve(node_count);
+  tree.leaf_list.reserve(leaf_count);
+  tree.leaf_lower_bound.reserve(leaf_count);
+  tree.leaf_corner_distance.reserve(leaf_count);
+  tree.list_offsets.assign(1, 0);
+  BuildStatistics& stats = model.statistics;
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> lists_by_hash;
+  std::vector<std::uint8_t> list_depth;
   std::int64_t total_length = 0, longest = 0;
-  for (int row = 0; row < rows; ++row) {
-    const RowLists& in = row_lists[row];
-    const int j = row % grid.dims[1];
-    const int k = row / grid.dims[1];
+  for (std::int64_t r = 0; r < root_count; ++r) {
+    Subtree& subtree = subtrees[r];
+    const std::uint32_t node_base = static_cast<std::uint32_t>(tree.nodes.size());  // of local node 1
+    const std::uint32_t leaf_base = static_cast<std::uint32_t>(tree.leaf_list.size());
+    auto relocate = [&](std::uint32_t value) {
+      return (value & RegionTree::kLeafBit) ? RegionTree::kLeafBit | (leaf_base + (value & ~RegionTree::kLeafBit))
+                                            : node_base + value - 1;
+    };
+    tree.nodes[r] = relocate(subtree.nodes[0]);
+    for (std::size_t n = 1; n < subtree.nodes.size(); ++n) tree.nodes.push_back(relocate(subtree.nodes[n]));
     std::size_t offset = 0;
-    for (int i = 0; i < grid.dims[0]; ++i) {
-      const std::int64_t v = grid.voxelIndex(i, j, k);
-      const std::int32_t* list = in.ids.data() + offset;
-      const std::uint8_t* bounds = in.bounds.data() + offset;
-      const std::uint32_t length = in.counts[i];
+    for (std::size_t leaf = 0; leaf < subtree.list_length.size(); ++leaf) {
+      const std::int32_t* list = subtree.lists.ids.data() + offset;
+      const std::uint8_t* bounds = subtree.lists.bounds.data() + offset;
+      const std::uint32_t length = subtree.list_length[leaf];
+      const std::uint8_t depth = subtree.depth[leaf];
       offset += length;
       total_length += length;
       longest = std::max<std::int64_t>(longest, length);
-      model.voxel_lower_bound[v] = in.lower_bounds[i];
-      std::uint64_t hash = 1469598103934665603ull ^ length;
+      if (stats.leaves_per_depth.size() <= depth) stats.leaves_per_depth.resize(depth + 1, 0);
+      ++stats.leaves_per_depth[depth];
+      tree.max_depth = std::max<int>(tree.max_depth, depth);
+      std::uint64_t hash = (1469598103934665603ull ^ length ^ std::uint64_t(depth) << 40) * 1099511628211ull;
       for (std::uint32_t n = 0; n < length; ++n) {
         hash = (hash ^ (std::uint32_t(list[n]) | std::uint64_t(bounds[n]) << 32)) * 1099511628211ull;
       }
       auto& same_hash = lists_by_hash[hash];
       std::uint32_t found = std::numeric_limits<std::uint32_t>::max();
       for (std::uint32_t id : same_hash) {
-        const std::uint32_t begin = model.list_offsets[id], end = model.list_offsets[id + 1];
-        if (end - begin == length && std::equal(list, list + length, model.list_triangles.begin() + begin) &&
-            std::equal(bounds, bounds + length, model.list_entry_bounds.begin() + begin)) {
+        const std::uint32_t begin = tree.list_offsets[id], end = tree.list_offsets[id + 1];
+        if (end - begin == length && list_depth[id] == depth &&
+            std::equal(list, list + length, tree.list_triangles.begin() + begin) &&
+            std::equal(bounds, bounds + length, tree.list_entry_bounds.begin() + begin)) {
           found = id;
           break;
         }
       }
       if (found == std::numeric_limits<std::uint32_t>::max()) {
-        found = static_cast<std::uint32_t>(model.list_offsets.size() - 1);
-        model.list_triangles.insert(model.list_triangles.end(), list, list + length);
-        model.list_entry_bounds.insert(model.list_entry_bounds.end(), bounds, bounds + length);
-        model.list_offsets.push_back(static_cast<std::uint32_t>(model.list_triangles.size()));
+        found = static_cast<std::uint32_t>(tree.list_offsets.size() - 1);
+        tree.list_triangles.insert(tree.list_triangles.end(), list, list + length);
+        tree.list_entry_bounds.insert(tree.list_entry_bounds.end(), bounds, bounds + length);
+        tree.list_offsets.push_back(static_cast<std::uint32_t>(tree.list_triangles.size()));
+        list_depth.push_back(depth);
         same_hash.push_back(found);
       }
-      model.voxel_list[v] = found;
+      tree.leaf_list.push_back(found);
+      tree.leaf_lower_bound.push_back(subtree.lower_bound[leaf]);
+      tree.leaf_corner_distance.push_back(subtree.corner_distance[leaf]);
     }
-    row_lists[row] = RowLists();  // release as we go
+    subtree = Subtree();  // release as we go
   }
+  tree.list_triangles.shrink_to_fit();
+  tree.list_entry_bounds.shrink_to_fit();
+  tree.list_offsets.shrink_to_fit();
 
-  BuildStatistics& stats = model.statistics;
-  stats.resolution = resolution;
-  stats.voxel_count = voxel_count;
-  stats.average_list_length = double(total_length) / double(voxel_count);
+  stats.resolution = static_cast<int>(std::llround(tree.bounds().size().maxCoeff() / tree.cellSize(tree.max_depth)));
+  stats.voxel_count = leaf_count;
+  stats.average_list_length = double(total_length) / double(std::max<std::int64_t>(leaf_count, 1));
   stats.longest_list = longest;
-  stats.distinct_lists = std::int64_t(model.list_offsets.size()) - 1;
-  stats.memory_bytes = std::int64_t(model.voxel_list.size() * sizeof(std::uint32_t) +
-                                    model.list_offsets.size() * sizeof(std::uint32_t) +
-                                    model.list_triangles.size() * sizeof(std::int32_t) +
-                                    model.list_entry_bounds.size() * sizeof(std::uint8_t) +
-                                    model.voxel_lower_bound.size() * sizeof(double) +
-                                    model.corner_distance.size() * sizeof(double) +
-                                    geometry.mesh.vertices.size() * sizeof(Eigen::Vector3d) +
-                                    geometry.mesh.triangles.size() * sizeof(std::array<int, 3>) +
-                                    geometry.corners.size() * sizeof(std::array<Eigen::Vector3d, 3>) +
-                                    geometry.spheres.size() * sizeof(Eigen::Vector4d) +
-                                    geometry.planes.size() * sizeof(Eigen::Vector4d) +
-                                    geometry.leaf_corners.size() * sizeof(std::array<Eigen::Vector3d, 3>) +
-                                    geometry.leaf_spheres.size() * sizeof(Eigen::Vector4d) +
-                                    geometry.leaf_planes.size() * sizeof(Eigen::Vector4d) +
-                                    geometry.bvh.nodes.size() * sizeof(BvhNode) +
-                                    geometry.bvh.triangle_ids.size() * sizeof(std::int32_t));
+  stats.distinct_lists = std::int64_t(tree.list_offsets.size()) - 1;
+  stats.coarsened = budget.exceeded;
+  stats.memory_bytes = capacityBytes(tree.nodes) + capacityBytes(tree.leaf_list) + capacityBytes(tree.leaf_lower_bound) +
+                       capacityBytes(tree.leaf_corner_distance) + capacityBytes(tree.list_offsets) +
+                       capacityBytes(tree.list_triangles) + capacityBytes(tree.list_entry_bounds) +
+                       capacityBytes(geometry.mesh.vertices) + capacityBytes(geometry.mesh.triangles) +
+                       capacityBytes(geometry.corners) + capacityBytes(geometry.spheres) + capacityBytes(geometry.planes) +
+                       capacityBytes(geometry.leaf_corners) + capacityBytes(geometry.leaf_spheres) +
+                       capacityBytes(geometry.leaf_planes) + capacityBytes(geometry.bvh.nodes) +
+                       capacityBytes(geometry.bvh.triangle_ids);
   stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (progress) progress(1.0);
   return model;

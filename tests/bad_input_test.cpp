@@ -119,12 +119,22 @@ TEST(BadInput, ResolutionTooLargeForMemorySaysHowManyBytesItNeeds) {
   }
 }
 
-TEST(BadInput, ResolutionZeroChoosesTheAutomaticResolution) {
-  const TriangleMesh mesh = test::makeTorus(1.0, 0.35, 10, 5);
+TEST(BadInput, ResolutionZeroBuildsAdaptiveRegions) {
+  const TriangleMesh mesh = test::loadBunny();
   const CflModel model = buildCflModel(mesh, withResolution(0));
-  EXPECT_EQ(model.statistics.resolution, automaticResolution(mesh, BuildOptions{}.padding));
-  EXPECT_GE(model.statistics.resolution, 8);
-  EXPECT_LE(model.statistics.resolution, 96);
+  EXPECT_GT(model.regions.max_depth, 0);
+  EXPECT_GT(model.statistics.resolution, model.regions.root_dims[0]);
+}
+
+TEST(BadInput, NegativeMemoryLimitIsRefusedByName) {
+  BuildOptions options;
+  options.memory_limit = -1;
+  try {
+    buildCflModel(test::makeTorus(1.0, 0.35, 10, 5), options);
+    FAIL() << "a negative memory limit was accepted";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find("memory_limit"), std::string::npos) << error.what();
+  }
 }
 
 }  // namespace

@@ -439,7 +439,7 @@ TEST(ComputeDistance, MeshEntirelyOutsideTheGridIsExact) {
       for (int n = 0; n < 3; ++n) {
         const Pose pose = makePose(a, b, fraction, rng);
         // Only poses where every vertex of B is outside A's grid count for this property.
-        const Aabb grid = a.cfl.grid.bounds();
+        const Aabb grid = a.cfl.regions.bounds();
         const Eigen::Isometry3d X_AB = pose.X_WA.inverse() * pose.X_WB;
         bool all_outside = true;
         for (const auto& v : b.mesh.vertices) {
@@ -1086,8 +1086,8 @@ TEST(DistanceCache, OneCacheGivenOtherModelsOrApproximateOptionsStaysCorrect) {
 // the closest: a certifying search that skipped the layer above (one that looked only at the voxels B's plane
 // crosses) would answer from a certificate without that pair, 0.003 too far.
 TEST(DistanceCache, CertificateListsThePairsOfVoxelsOnlyTheMarginReaches) {
-  const double h = 0.15;                    // voxel edge: lateral extent 2, padding 1.5, resolution 20
-  const double layer = 3 * h;               // the top of B's voxel layer
+  const double h = 0.15;                    // voxel edge: lateral extent 2 + 1 of padding, resolution 20
+  const double layer = 3.5 * h;             // the top of B's voxel layer
   const double below = 0.01 * h, bisector = layer + 0.05 * h;
   const double upper = 2 * bisector;        // the lower sheet is at z = 0
   auto sheet = [](TriangleMesh& mesh, double z) {
@@ -1102,7 +1102,7 @@ TEST(DistanceCache, CertificateListsThePairsOfVoxelsOnlyTheMarginReaches) {
   sheet(mesh_a, 0.0);
   sheet(mesh_a, upper);
   // A speck in a corner, up at z = 1.2, sets the grid's vertical extent so that a layer of voxels ends at
-  // `layer` (12 layers from -0.3).
+  // `layer` (15 layers from -0.525: the box grows by 0.5 of its longest extent, 2, on every axis).
   mesh_a.vertices.insert(mesh_a.vertices.end(), {{0.9, 0.9, 1.2}, {1.0, 0.9, 1.2}, {0.9, 1.0, 1.2}});
   mesh_a.triangles.push_back({8, 9, 10});
   BuildOptions options;
@@ -1110,8 +1110,9 @@ TEST(DistanceCache, CertificateListsThePairsOfVoxelsOnlyTheMarginReaches) {
   options.padding = 1.5;
   const MeshModel model_a = makeMeshModel(mesh_a);
   const CflModel cfl_a = buildCflModel(mesh_a, options);
-  ASSERT_NEAR(cfl_a.grid.voxel_size, h, 1e-12);
-  ASSERT_NEAR(cfl_a.grid.origin.z() + 5 * h, layer, 1e-12) << "no layer of voxels ends where the test needs one";
+  ASSERT_EQ(cfl_a.regions.max_depth, 0);
+  ASSERT_NEAR(cfl_a.regions.root_size, h, 1e-12);
+  ASSERT_NEAR(cfl_a.regions.origin.z() + 7 * h, layer, 1e-12) << "no layer of voxels ends where the test needs one";
 
   TriangleMesh mesh_b;
   mesh_b.vertices = {{0, 0, 0}, {0.05, 0, 0}, {0, 0.05, 0}};

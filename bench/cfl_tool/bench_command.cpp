@@ -56,7 +56,7 @@ Columns, per band:
 
   --queries N      poses per band (default 200)
   --bands LIST     comma-separated fractions of the diagonal (default 0,0.005,0.02,0.1,0.5)
-  --resolution N   CFL grid resolution; 0 (default) picks one
+  --resolution N   0 (default): adaptive regions; N > 0: a uniform grid of N cells
   --seed S         random seed (default 1); the same seed gives the same poses here and in the
                    Google Benchmark suite cfl_distance_bench
   --repeats R      timed runs per pose and method (default 3)
@@ -239,11 +239,12 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
 
   io.out << format("cfl bench: A = %s (%zu triangles), B = %s (%zu triangles), A's diagonal %g\n", path_a.c_str(),
                    mesh_a.triangles.size(), path_b.c_str(), model_b.mesh.triangles.size(), diagonal);
-  io.out << format("build: CFL %.3f s (resolution %d, %lld voxels, avg CFL %.2f, %.1f MB); B's mesh model %.4f s; "
+  io.out << format("build: CFL %.3f s (%s regions, %d levels, %lld leaves, avg CFL %.2f, %.1f MB); B's mesh model %.4f s; "
                    "FCL OBBRSS %.4f s; FCL RSS %.4f s (A's structure; B's took %.4f s and %.4f s)\n",
-                   cfl_a.statistics.build_seconds, cfl_a.statistics.resolution,
-                   static_cast<long long>(cfl_a.statistics.voxel_count), cfl_a.statistics.average_list_length,
-                   double(cfl_a.statistics.memory_bytes) / (1 << 20), model_b_seconds, obbrss_a.buildSeconds(),
+                   cfl_a.statistics.build_seconds, cfl_a.regions.max_depth > 0 ? "adaptive" : "uniform",
+                   cfl_a.regions.max_depth + 1, static_cast<long long>(cfl_a.statistics.voxel_count),
+                   cfl_a.statistics.average_list_length, double(cfl_a.statistics.memory_bytes) / (1 << 20),
+                   model_b_seconds, obbrss_a.buildSeconds(),
                    rss_a.buildSeconds(), obbrss_b.buildSeconds(), rss_b.buildSeconds());
   io.out << format("queries: %d poses per band, seed %llu, each timed %d times per method (%s), "
                    "%s microseconds per query; CFL's query kernels: %s\n\n",

@@ -25,8 +25,9 @@ Precomputes the CFL voxels of MESH (any format assimp reads: OBJ, STL, PLY, OFF,
 statistics. Progress goes to standard error: a bar on a terminal, plain lines otherwise.
 
   -o, --output OUT.cfl  also save the model (load it with 'cfl info', 'cfl distance' or cfl::loadCflModel)
-  --resolution N        voxels along the longest axis; 0 (default) picks one from the mesh
-  --padding P           the grid covers the bounding box scaled by P about its center (default 3, >= 1)
+  --resolution N        0 (default): adaptive regions; N > 0: a uniform grid of N cells along the longest axis
+  --padding P           the regions cover the bounding box grown by (P - 1) / 2 of its longest extent on every
+                        side (default 3, >= 1)
   --threads T           build threads; 0 (default) uses every hardware thread
 )";
 
@@ -54,7 +55,7 @@ Pose file: one pose per line, 12 numbers separated by spaces or commas, the row-
 B's pose. '#' starts a comment; blank lines are skipped. A malformed line is an error naming its number.
 
   --method M      cfl (default), obbrss (FCL 0.7 BVHModel<OBBRSS>) or both
-  --resolution N  CFL grid resolution when A is a mesh; 0 (default) picks one
+  --resolution N  when A is a mesh: 0 (default) adaptive regions, N > 0 a uniform grid of N cells
   --threads T     build threads (default: all)
 )";
 

@@ -82,7 +82,7 @@ int runPaper(const std::vector<std::string>& raw, Streams io) {
     CflModel built = obtainCflModel(path, options, io.err);
     const BuildStatistics& s = built.statistics;
     io.out << format("%-10d %-12s %9lld %16.2f %14.2f %8lld %10.2f %9.3f\n", row.resolution,
-                     format("%dx%dx%d", built.grid.dims[0], built.grid.dims[1], built.grid.dims[2]).c_str(),
+                     format("%dx%dx%d", built.regions.root_dims[0], built.regions.root_dims[1], built.regions.root_dims[2]).c_str(),
                      static_cast<long long>(s.voxel_count), s.average_list_length, row.average_length,
                      static_cast<long long>(s.longest_list), double(s.memory_bytes) / (1 << 20), s.build_seconds);
     io.out.flush();

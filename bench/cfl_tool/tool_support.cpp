@@ -117,14 +117,24 @@ void printStatistics(const CflModel& model, std::ostream& out) {
   out << format("vertices:            %zu\n", model.geometry.mesh.vertices.size());
   out << format("bounding box:        [%g, %g, %g] - [%g, %g, %g] (diagonal %g)\n", b.min.x(), b.min.y(),
                 b.min.z(), b.max.x(), b.max.y(), b.max.z(), b.diagonal());
-  out << format("resolution:          %d (grid %d x %d x %d, voxel edge %g, padding %g)\n", s.resolution,
-                model.grid.dims[0], model.grid.dims[1], model.grid.dims[2], model.grid.voxel_size, model.padding);
-  out << format("voxels:              %lld\n", static_cast<long long>(s.voxel_count));
+  const RegionTree& r = model.regions;
+  const std::size_t triangles = std::max<std::size_t>(model.geometry.mesh.triangles.size(), 1);
+  out << format("regions:             %s, root grid %d x %d x %d of edge %g, %d levels below it, padding %g\n",
+                r.max_depth > 0 ? "adaptive" : "uniform", r.root_dims[0], r.root_dims[1], r.root_dims[2], r.root_size,
+                r.max_depth, model.padding);
+  out << format("finest cell edge:    %g (%d along the longest axis)\n", r.cellSize(r.max_depth), s.resolution);
+  out << format("leaves:              %lld\n", static_cast<long long>(s.voxel_count));
+  for (std::size_t depth = 0; depth < s.leaves_per_depth.size(); ++depth) {
+    out << format("  depth %2zu:          %lld of edge %g\n", depth, static_cast<long long>(s.leaves_per_depth[depth]),
+                  r.cellSize(int(depth)));
+  }
   out << format("average CFL length:  %.3f\n", s.average_list_length);
   out << format("longest CFL:         %lld\n", static_cast<long long>(s.longest_list));
   out << format("distinct lists:      %lld\n", static_cast<long long>(s.distinct_lists));
-  out << format("memory:              %.2f MB (%.1f bytes per voxel)\n", double(s.memory_bytes) / (1 << 20),
-                s.voxel_count > 0 ? double(s.memory_bytes) / double(s.voxel_count) : 0.0);
+  out << format("memory:              %.2f MB (%.1f bytes per triangle, %.1f per leaf)%s\n",
+                double(s.memory_bytes) / (1 << 20), double(s.memory_bytes) / double(triangles),
+                s.voxel_count > 0 ? double(s.memory_bytes) / double(s.voxel_count) : 0.0,
+                s.coarsened ? "; refinement stopped at the memory limit" : "");
   out << format("build time:          %.3f s\n", s.build_seconds);
   out << format("topology culling:    %s\n", model.topology_culling ? "on" : "off");
 }

@@ -1,0 +1,175 @@
+#pragma once
+/// @file
+/// The adaptive discrete Voronoi regions of a mesh: a shallow tree of cubic cells, each leaf holding its
+/// Closest Feature List (CFL), the triangles that can be closest to some point of the leaf.
+///
+/// Layout (after NanoVDB's: plain arrays, indices instead of pointers, read-only once built): a root grid of
+/// root_dims[0] x root_dims[1] x root_dims[2] cubic cells of edge root_size from `origin`; each cell is either
+/// a leaf or split into 2 x 2 x 2 children of half its edge, down to at most `max_depth` levels below the
+/// root. Cells are refined where their lists would be long and kept coarse where lists are short (far from
+/// the mesh, over large flat triangles), so that memory grows with the surface, not with the bounding box.
+/// A uniform grid is the special case max_depth == 0 (every root cell a leaf), which BuildOptions::resolution
+/// asks for.
+
+#include "cfl/mesh.h"
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+namespace cfl {
+
+/// A leaf found by point location: its index into the leaf arrays, its box and its depth.
+struct RegionCell {
+  std::uint32_t leaf = 0;
+  Eigen::Vector3d min_corner = Eigen::Vector3d::Zero();  ///< Frame M.
+  double size = 0;  ///< Edge length.
+  int depth = 0;    ///< 0 for a root cell.
+};
+
+/// All fields are plain data, frame M (the mesh's), lengths in the mesh's units. Immutable once built:
+/// any number of threads may read one tree at once.
+struct RegionTree {
+  /// nodes[n] with this bit set is a leaf whose index is the other bits; otherwise it is the index of the
+  /// first of n's eight children, stored consecutively, child c covering the octant with x-bit c & 1, y-bit
+  /// (c >> 1) & 1, z-bit c >> 2 (set: the upper half).
+  static constexpr std::uint32_t kLeafBit = 0x80000000u;
+
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();  ///< Min corner of the root grid.
+  double root_size = 0;                              ///< Edge of a root cell.
+  std::array<int, 3> root_dims{0, 0, 0};
+  int max_depth = 0;  ///< Deepest level any leaf has (0: a uniform grid of root cells).
+
+  /// nodes[0, rootCount()) are the root cells, root cell (i, j, k) at i + root_dims[0] (j + root_dims[1] k);
+  /// their descendants follow.
+  std::vector<std::uint32_t> nodes;
+
+  /// Per leaf. leaf_list: index of its CFL (lists are shared between leaves whose ids, entry bounds and
+  /// depth agree). leaf_lower_bound: a lower bound on the distance from any point of the leaf to the mesh
+  /// (0 where the mesh passes through it). leaf_corner_distance: the distance from each of its eight
+  /// corners to the mesh, corner c at min_corner + size (c & 1, (c >> 1) & 1, c >> 2), rounded down to float:
+  /// distance to a set is 1-Lipschitz, so dist(p, mesh) >= corner distance - |p - corner| for every p.
+  std::vector<std::uint32_t> leaf_list;
+  std::vector<float> leaf_lower_bound;
+  std::vector<std::array<float, 8>> leaf_corner_distance;
+
+  /// CSR storage of the lists: list l is list_triangles[list_offsets[l], list_offsets[l + 1]), triangle ids
+  /// into the mesh. Within a list, entries are sorted by (list_entry_bounds, id), both increasing, so a query
+  /// scans the nearest triangles first and stops at the first entry whose bound reaches its best distance.
+  std::vector<std::uint32_t> list_offsets;
+  std::vector<std::int32_t> list_triangles;
+  /// Parallel to list_triangles: a lower bound on the distance between the entry's triangle and the leaves
+  /// that use the list, in units of entryBoundUnit(depth) of those leaves, rounded down, saturated at 255.
+  std::vector<std::uint8_t> list_entry_bounds;
+
+  std::int64_t rootCount() const { return std::int64_t(root_dims[0]) * root_dims[1] * root_dims[2]; }
+  std::int64_t leafCount() const { return std::int64_t(leaf_list.size()); }
+  double cellSize(int depth) const { return root_size / double(std::int64_t(1) << depth); }
+  /// The unit of list_entry_bounds at a depth: 1/32 of the cell edge, so bounds up to 8 edges are kept.
+  double entryBoundUnit(int depth) const { return cellSize(depth) / 32; }
+  /// The box of the root grid.
+  Aabb bounds() const {
+    Aabb box;
+    box.min = origin;
+    box.max = origin + root_size * Eigen::Vector3d(root_dims[0], root_dims[1], root_dims[2]);
+    return box;
+  }
+  const std::int32_t* listBegin(std::uint32_t leaf) const { return list_triangles.data() + list_offsets[leaf_list[leaf]]; }
+  const std::int32_t* listEnd(std::uint32_t leaf) const { return list_triangles.data() + list_offsets[leaf_list[leaf] + 1]; }
+  const std::uint8_t* listBoundsBegin(std::uint32_t leaf) const {
+    return list_entry_bounds.data() + list_offsets[leaf_list[leaf]];
+  }
+
+  /// The leaf holding p (clamped into the root grid; a point on a face may get either side). O(depth): one
+  /// array read per level.
+  RegionCell locate(const Eigen::Vector3d& p) const {
+    // Fixed point, kFraction bits per root cell: the octant at each level is one bit of each coordinate, so
+    // the descent is shifts and masks and one array read per level.
+    constexpr int kFraction = 24;
+    constexpr double kScale = double(1 << kFraction);
+    const Eigen::Vector3d q = (p - origin) * (kScale / root_size);
+    std::int64_t fixed[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      const double top = double(root_dims[axis]) * kScale - 1;
+      const double clamped = q[axis] >= 0 ? (q[axis] < top ? q[axis] : top) : 0.0;  // NaN goes to 0
+      fixed[axis] = static_cast<std::int64_t>(clamped);
+    }
+    std::uint32_t node = std::uint32_t((fixed[0] >> kFraction) +
+                                       std::int64_t(root_dims[0]) * ((fixed[1] >> kFraction) +
+                                                                     std::int64_t(root_dims[1]) * (fixed[2] >> kFraction)));
+    int depth = 0;
+    std::uint32_t value = nodes[node];
+    while (!(value & kLeafBit) && depth < kFraction) {
+      const int shift = kFraction - 1 - depth;
+      const std::uint32_t octant = std::uint32_t((fixed[0] >> shift) & 1) | std::uint32_t((fixed[1] >> shift) & 1) << 1 |
+                                   std::uint32_t((fixed[2] >> shift) & 1) << 2;
+      value = nodes[value + octant];
+      ++depth;
+    }
+    RegionCell cell;
+    cell.leaf = value & ~kLeafBit;
+    cell.depth = depth;
+    const int drop = kFraction - depth;
+    cell.size = root_size / double(std::int64_t(1) << depth);
+    cell.min_corner = origin + (root_size / kScale) * Eigen::Vector3d(double((fixed[0] >> drop) << drop),
+                                                                       double((fixed[1] >> drop) << drop),
+                                                                       double((fixed[2] >> drop) << drop));
+    return cell;
+  }
+
+  /// Calls visit(const RegionCell&) for every leaf whose closed box meets the closed box [lo, hi] (frame M;
+  /// clamped into the root grid). Allocation-free.
+  template <class Visit>
+  void forEachLeafInBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, Visit&& visit) const {
+    Eigen::Vector3d qlo = (lo - origin) / root_size, qhi = (hi - origin) / root_size;
+    int first[3], last[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      const double top = root_dims[axis];
+      qlo[axis] = qlo[axis] >= 0 ? (qlo[axis] < top ? qlo[axis] : top) : 0.0;  // NaN goes to 0
+      qhi[axis] = qhi[axis] >= 0 ? (qhi[axis] < top ? qhi[axis] : top) : 0.0;
+      first[axis] = qlo[axis] < top ? int(qlo[axis]) : root_dims[axis] - 1;
+      last[axis] = qhi[axis] < top ? int(qhi[axis]) : root_dims[axis] - 1;
+    }
+    struct Pending {
+      std::uint32_t node;
+      int depth;
+      double x, y, z;  // lower corner in root-cell units
+    };
+    Pending stack[8 * 24];  // at most 7 pending siblings per level
+    for (int k = first[2]; k <= last[2]; ++k) {
+      for (int j = first[1]; j <= last[1]; ++j) {
+        for (int i = first[0]; i <= last[0]; ++i) {
+          int top = 0;
+          stack[top++] = {std::uint32_t(i + std::int64_t(root_dims[0]) * (j + std::int64_t(root_dims[1]) * k)), 0,
+                          double(i), double(j), double(k)};
+          while (top > 0) {
+            const Pending cell = stack[--top];
+            const std::uint32_t value = nodes[cell.node];
+            const double size = 1.0 / double(std::int64_t(1) << cell.depth);
+            if (value & kLeafBit) {
+              RegionCell found;
+              found.leaf = value & ~kLeafBit;
+              found.min_corner = origin + root_size * Eigen::Vector3d(cell.x, cell.y, cell.z);
+              found.size = root_size * size;
+              found.depth = cell.depth;
+              visit(static_cast<const RegionCell&>(found));
+              continue;
+            }
+            const double half = 0.5 * size;
+            for (int octant = 7; octant >= 0; --octant) {
+              const double x = cell.x + half * (octant & 1), y = cell.y + half * ((octant >> 1) & 1),
+                           z = cell.z + half * (octant >> 2);
+              if (x > qhi[0] || x + half < qlo[0] || y > qhi[1] || y + half < qlo[1] || z > qhi[2] ||
+                  z + half < qlo[2]) {
+                continue;
+              }
+              stack[top++] = {value + std::uint32_t(octant), cell.depth + 1, x, y, z};
+            }
+          }
+        }
+      }
+    }
+  }
+};
+
+}  // namespace cfl

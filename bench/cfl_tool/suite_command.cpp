@@ -61,7 +61,7 @@ CFL answer checked against OBBRSS (brute force where they disagree). Prints one 
 
   --generate       write the suite into DIR and stop
   --huge           with --generate: also the 1.4M-triangle case (minutes to build and run)
-  --queries N      poses per band (default 20)
+  --queries N      poses per band (default 40; the whole suite then takes a few minutes on 2 cores)
   --bands LIST     fractions of A's diagonal (default 0,0.005,0.02,0.1,0.5,1; 0 = overlapping)
   --cases LIST     comma-separated case names to run (default: all, in manifest order)
   --seed S, --repeats R, --clock C, --order O, --resolution N, --threads T   as in 'cfl bench'
@@ -327,7 +327,7 @@ int runSuite(const std::vector<std::string>& raw, Streams io) {
   if (args.has("huge")) throw UsageError("--huge goes with --generate");
 
   SuiteSettings s;
-  s.queries = int(parseInteger(args.get("queries").value_or("20"), "--queries", 1, 1000000));
+  s.queries = int(parseInteger(args.get("queries").value_or("40"), "--queries", 1, 1000000));
   s.bands = args.has("bands") ? parseBandList(*args.get("bands"), "--bands") : std::vector<double>{0, 0.005, 0.02, 0.1, 0.5, 1};
   s.seed = std::uint64_t(parseInteger(args.get("seed").value_or("1"), "--seed", 0, INT64_MAX));
   s.repeats = int(parseInteger(args.get("repeats").value_or("3"), "--repeats", 1, 1000));

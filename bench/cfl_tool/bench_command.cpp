@@ -6,6 +6,7 @@
 #include "bench_sections.h"
 #include "commands.h"
 #include "fcl_baseline.h"
+#include "heap.h"
 #include "measure.h"
 #include "pose_generator.h"
 #include "referee.h"
@@ -227,12 +228,16 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
   // Before the build: a bad CFL_KERNELS fails here, not after it.
   const char* kernels = queryKernelsName(activeQueryKernels());
 
-  const CflModel cfl_a = obtainCflModel(path_a, options, io.err);
+  // Each model's heap counts its own copy of the mesh, as FCL's BVHModel copies A's arrays (see heap.h).
+  const auto cfl_measured = measureHeap([&] { return obtainCflModel(path_a, options, io.err); });
+  const CflModel& cfl_a = cfl_measured.first;
   const TriangleMesh& mesh_a = cfl_a.geometry.mesh;
   auto start = std::chrono::steady_clock::now();
   const MeshModel model_b = makeMeshModel(readMeshArgument(path_b));
   const double model_b_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  const bench::FclModel obbrss_a(mesh_a, bench::FclBv::kOBBRSS), obbrss_b(model_b.mesh, bench::FclBv::kOBBRSS);
+  const auto obbrss_measured = measureHeap([&] { return bench::FclModel(mesh_a, bench::FclBv::kOBBRSS); });
+  const bench::FclModel& obbrss_a = obbrss_measured.first;
+  const bench::FclModel obbrss_b(model_b.mesh, bench::FclBv::kOBBRSS);
   const bench::FclModel rss_a(mesh_a, bench::FclBv::kRSS), rss_b(model_b.mesh, bench::FclBv::kRSS);
   const double diagonal = cfl_a.geometry.bounds.diagonal();
   const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
@@ -246,6 +251,11 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
                    cfl_a.statistics.average_list_length, double(cfl_a.statistics.memory_bytes) / (1 << 20),
                    model_b_seconds, obbrss_a.buildSeconds(),
                    rss_a.buildSeconds(), obbrss_b.buildSeconds(), rss_b.buildSeconds());
+  const double triangles_a = double(mesh_a.triangles.size());
+  io.out << format("heap (mallinfo2, what building A's model adds): CFL %.0f bytes per triangle (%.1f MB), "
+                   "FCL OBBRSS %.0f bytes per triangle (%.1f MB)\n",
+                   double(cfl_measured.second) / triangles_a, double(cfl_measured.second) / (1 << 20),
+                   double(obbrss_measured.second) / triangles_a, double(obbrss_measured.second) / (1 << 20));
   io.out << format("queries: %d poses per band, seed %llu, each timed %d times per method (%s), "
                    "%s microseconds per query; CFL's query kernels: %s\n\n",
                    queries, static_cast<unsigned long long>(seed), repeats,

@@ -227,6 +227,7 @@ const std::vector<Command>& commands() {
       {"distance", "distance between two meshes at poses from a file, as CSV (CFL and/or FCL OBBRSS)", runDistance},
       {"bench", "CFL against FCL OBBRSS and RSS on the same random poses, per separation band", runBench},
       {"paper", "the paper's Tables 1 and 2 on the bundled bunny, next to the published figures", runPaper},
+      {"suite", "the benchmark suite of varied meshes and pairs: write it, or run it into one table", runSuite},
   };
   return list;
 }

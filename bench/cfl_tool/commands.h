@@ -31,5 +31,6 @@ int runInfo(const std::vector<std::string>& args, Streams io);
 int runDistance(const std::vector<std::string>& args, Streams io);
 int runBench(const std::vector<std::string>& args, Streams io);
 int runPaper(const std::vector<std::string>& args, Streams io);
+int runSuite(const std::vector<std::string>& args, Streams io);
 
 }  // namespace cfl::tool

@@ -131,13 +131,6 @@ const CflModel& smallModel() {
   return model;
 }
 
-// A small adaptive model: a soup squashed into a rod, so that the root grid is one row of cells, some of
-// them refined twice. Small enough for every byte offset too.
-const CflModel& adaptiveModel() {
-  static const CflModel model = build(squashed(test::makeTriangleSoup(30, 2, 1.0, 0.2), 0.05), 0, 1.0);
-  return model;
-}
-
 // The depth of every node (parents come before their children).
 std::vector<int> nodeDepths(const RegionTree& tree) {
   std::vector<int> depth(tree.nodes.size(), 0);
@@ -147,6 +140,70 @@ std::vector<int> nodeDepths(const RegionTree& tree) {
     }
   }
   return depth;
+}
+
+// Splits leaf node `node` of `model` into eight children appended to the nodes: child 0 keeps the old
+// leaf, the other seven are new leaves with its list and lower bound and corner distances 0. The model
+// stays exact: a list and a lower bound that hold for a cell hold for its parts (entry bounds count in
+// finer units there, so they only get lower), and 0 is a true lower bound at any corner. Returns the
+// index of child 0.
+std::size_t split(CflModel& model, std::size_t node) {
+  RegionTree& tree = model.regions;
+  const std::uint32_t old_leaf = tree.nodes[node] & ~RegionTree::kLeafBit;
+  const std::uint32_t block = static_cast<std::uint32_t>(tree.nodes.size());
+  tree.nodes[node] = block;
+  tree.nodes.push_back(RegionTree::kLeafBit | old_leaf);
+  for (int c = 1; c < 8; ++c) {
+    tree.nodes.push_back(RegionTree::kLeafBit | static_cast<std::uint32_t>(tree.leaf_list.size()));
+    tree.leaf_list.push_back(tree.leaf_list[old_leaf]);
+    tree.leaf_lower_bound.push_back(tree.leaf_lower_bound[old_leaf]);
+    tree.leaf_corner_distance.push_back({});
+  }
+  // The figures the loader checks against the tree.
+  const std::vector<int> depths = nodeDepths(tree);
+  tree.max_depth = std::max(tree.max_depth, depths[block]);
+  BuildStatistics& s = model.statistics;
+  s.voxel_count = tree.leafCount();
+  s.leaves_per_depth.assign(tree.max_depth + 1, 0);
+  for (std::size_t n = 0; n < tree.nodes.size(); ++n) {
+    if (tree.nodes[n] & RegionTree::kLeafBit) ++s.leaves_per_depth[depths[n]];
+  }
+  return block;
+}
+
+// Replaces leaf node `node` by a chain of cells `depth` levels deep: at every level child 0 is split again.
+CflModel deepened(const CflModel& good, std::size_t node, int depth) {
+  CflModel model = good;
+  for (int level = 0; level < depth; ++level) node = split(model, node);
+  return model;
+}
+
+// A small adaptive model: a soup squashed into a rod, so that the root grid is one row of cells. The
+// structure tests need two split root cells and a cell two levels down; where the builder's refinement
+// rules (free to change) did not make them, they are made here by splitting leaves, which keeps the
+// model exact.
+const CflModel& adaptiveModel() {
+  static const CflModel model = [] {
+    CflModel built = build(squashed(test::makeTriangleSoup(30, 2, 1.0, 0.2), 0.05), 0, 1.0);
+    const auto splitRoots = [&] {
+      std::vector<std::size_t> roots;
+      for (std::int64_t r = 0; r < built.regions.rootCount(); ++r) {
+        if (!(built.regions.nodes[r] & RegionTree::kLeafBit)) roots.push_back(std::size_t(r));
+      }
+      return roots;
+    };
+    for (std::int64_t r = 1; splitRoots().size() < 2 && r < built.regions.rootCount(); r += 2) {
+      if (built.regions.nodes[r] & RegionTree::kLeafBit) split(built, std::size_t(r));
+    }
+    if (built.regions.max_depth < 2) {
+      // A leaf below the first split root is split in turn.
+      std::size_t node = built.regions.nodes[splitRoots()[0]];
+      while (!(built.regions.nodes[node] & RegionTree::kLeafBit)) node = built.regions.nodes[node];
+      split(built, node);
+    }
+    return built;
+  }();
+  return model;
 }
 
 // The nodes that are leaves (`leaves` true) or that have children (false), in index order.
@@ -797,40 +854,6 @@ TEST_F(CflFileStructure, LeavesReferencedTwiceOrNeverOrOutOfRangeAreRefused) {
   expectModelRefused(model, "leaf_list of leaf " + std::to_string(leaf_count - 1) + " is list 4294967295");
 }
 
-// Replaces root cell `root` (a leaf) by a chain of cells `depth` levels deep: at every level child 0 is
-// split again and the other seven are new leaves. Every new leaf reuses the old leaf's list and lower bound
-// (both stay true for a smaller cell: entry bounds are counted in finer units there, so they only get
-// lower) with corner distances 0 (true lower bounds), so the model stays exact.
-CflModel deepened(const CflModel& good, std::size_t root, int depth) {
-  CflModel model = good;
-  RegionTree& tree = model.regions;
-  const std::uint32_t old_leaf = tree.nodes[root] & ~RegionTree::kLeafBit;
-  const auto newLeaf = [&]() {
-    tree.leaf_list.push_back(tree.leaf_list[old_leaf]);
-    tree.leaf_lower_bound.push_back(tree.leaf_lower_bound[old_leaf]);
-    tree.leaf_corner_distance.push_back({});
-    return RegionTree::kLeafBit | std::uint32_t(tree.leaf_list.size() - 1);
-  };
-  std::size_t parent = root;
-  for (int level = 1; level <= depth; ++level) {
-    const std::uint32_t block = static_cast<std::uint32_t>(tree.nodes.size());
-    tree.nodes[parent] = block;
-    tree.nodes.resize(block + 8);
-    for (int c = 1; c < 8; ++c) tree.nodes[block + c] = newLeaf();
-    tree.nodes[block] = level == depth ? (RegionTree::kLeafBit | old_leaf) : 0;  // split again on the next level
-    parent = block;
-  }
-  tree.max_depth = std::max(tree.max_depth, depth);
-  BuildStatistics& s = model.statistics;
-  s.voxel_count = tree.leafCount();
-  s.leaves_per_depth.assign(tree.max_depth + 1, 0);
-  const std::vector<int> depths = nodeDepths(tree);
-  for (std::size_t n = 0; n < tree.nodes.size(); ++n) {
-    if (tree.nodes[n] & RegionTree::kLeafBit) ++s.leaves_per_depth[depths[n]];
-  }
-  return model;
-}
-
 TEST_F(CflFileStructure, TreesDeeperThanTwentyFourLevelsAreRefused) {
   const CflModel& good = adaptiveModel();
   const std::vector<std::size_t> leaves = nodesWhere(good.regions, true);
@@ -958,6 +981,45 @@ TEST_F(CflFileStructure, NonFiniteValuesAreRefused) {
   const std::size_t stat = sectionBody(good_, "STAT");
   expectRefused(edited([&](Bytes& b) { putF64(b, stat + 16, nan); }), "non-finite");
   expectRefused(edited([&](Bytes& b) { putF64(b, stat + 48, inf); }), "non-finite");
+}
+
+// Values a hostile file may hold that pass every check (finite, in range) but are far from the truth: the
+// model loads, and queries must still end with a distance or a cfl::Error (the answer may be wrong; the
+// checksum exists to keep such files out), as the fuzzer requires.
+TEST(CflFile, ExtremeButValidValuesLoadAndQueryWithoutCrashing) {
+  const MeshModel b = makeMeshModel(test::makeTorus(0.2, 0.05, 12, 6));
+  const float huge = std::numeric_limits<float>::max();
+  for (const CflModel* good : {&smallModel(), &adaptiveModel()}) {
+    for (int variant = 0; variant < 3; ++variant) {
+      CflModel model = *good;
+      RegionTree& tree = model.regions;
+      for (std::size_t leaf = 0; leaf < tree.leaf_list.size(); ++leaf) {
+        if (variant != 1) tree.leaf_corner_distance[leaf].fill(huge);
+        if (variant != 0) tree.leaf_lower_bound[leaf] = huge;
+      }
+      if (variant == 2) {  // every entry claims to be far: the lists then go in id order
+        std::fill(tree.list_entry_bounds.begin(), tree.list_entry_bounds.end(), std::uint8_t(255));
+        for (std::size_t l = 0; l + 1 < tree.list_offsets.size(); ++l) {
+          std::sort(tree.list_triangles.begin() + tree.list_offsets[l], tree.list_triangles.begin() + tree.list_offsets[l + 1]);
+        }
+      }
+      const Bytes bytes = serializeCflModel(model);
+      const CflModel loaded = deserializeCflModel(bytes.data(), bytes.size(), kName);
+      test::Rng rng(23);
+      for (int i = 0; i < 10; ++i) {
+        for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+          DistanceOptions options;
+          options.mode = mode;
+          const Eigen::Isometry3d X_WB = test::randomPose(rng, 2 * good->geometry.bounds.diagonal());
+          try {
+            const DistanceResult result = computeDistance(loaded, Eigen::Isometry3d::Identity(), b, X_WB, options);
+            EXPECT_GE(result.distance, 0.0) << "variant " << variant << " pose " << i;
+          } catch (const Error&) {
+          }
+        }
+      }
+    }
+  }
 }
 
 TEST_F(CflFileStructure, MeshDefectsAreNamedAsInValidateMesh) {

@@ -537,6 +537,9 @@ float lowerFloat(double x) {
 constexpr std::uint32_t kListTarget = 8;
 constexpr double kSmallestCell = 1.25;
 constexpr double kFarCellRatio = 1.0;  // cells no larger than this times their distance stay whole
+// A leaf whose list stays longer than this stores none (RegionTree::kNoList): scanning it would cost more
+// than testing what falls there against the Bvh, and storing it more memory than the rest of the model.
+constexpr std::uint32_t kLongestList = 64;
 constexpr int kDeepest = 20;           // levels below the root; RegionTree::forEachLeafInBox's stack allows 24
 
 // Shared across the root cells' builds: the bytes committed so far, against the memory limit.
@@ -567,13 +570,18 @@ class SubtreeBuilder {
     }
     const std::uint32_t leaf = static_cast<std::uint32_t>(out.list_length.size());
     out.nodes[slot] = RegionTree::kLeafBit | leaf;
-    out.list_length.push_back(length);
+    const bool stored = !adaptive_ || length <= kLongestList;
+    if (!stored) {
+      out.lists.ids.resize(begin);
+      out.lists.bounds.resize(begin);
+    }
+    out.list_length.push_back(stored ? length : RegionTree::kNoList);
     out.depth.push_back(static_cast<std::uint8_t>(depth));
     out.lower_bound.push_back(lowerFloat(out.lists.lower_bound));
     std::array<float, 8> corners;
     for (int n = 0; n < 8; ++n) corners[n] = lowerFloat(corner_distance[n]);
     out.corner_distance.push_back(corners);
-    budget_.bytes += std::int64_t(kLeafBytes + length * 5);
+    budget_.bytes += std::int64_t(kLeafBytes + (stored ? length * 5 : 0));
   }
 
  private:
@@ -785,14 +793,21 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
     for (std::size_t leaf = 0; leaf < subtree.list_length.size(); ++leaf) {
       const std::int32_t* list = subtree.lists.ids.data() + offset;
       const std::uint8_t* bounds = subtree.lists.bounds.data() + offset;
-      const std::uint32_t length = subtree.list_length[leaf];
       const std::uint8_t depth = subtree.depth[leaf];
-      offset += length;
-      total_length += length;
-      longest = std::max<std::int64_t>(longest, length);
       if (stats.leaves_per_depth.size() <= depth) stats.leaves_per_depth.resize(depth + 1, 0);
       ++stats.leaves_per_depth[depth];
       tree.max_depth = std::max<int>(tree.max_depth, depth);
+      tree.leaf_lower_bound.push_back(subtree.lower_bound[leaf]);
+      tree.leaf_corner_distance.push_back(subtree.corner_distance[leaf]);
+      if (subtree.list_length[leaf] == RegionTree::kNoList) {
+        tree.leaf_list.push_back(RegionTree::kNoList);
+        ++stats.leaves_without_list;
+        continue;
+      }
+      const std::uint32_t length = subtree.list_length[leaf];
+      offset += length;
+      total_length += length;
+      longest = std::max<std::int64_t>(longest, length);
       std::uint64_t hash = (1469598103934665603ull ^ length ^ std::uint64_t(depth) << 40) * 1099511628211ull;
       for (std::uint32_t n = 0; n < length; ++n) {
         hash = (hash ^ (std::uint32_t(list[n]) | std::uint64_t(bounds[n]) << 32)) * 1099511628211ull;
@@ -817,8 +832,6 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
         same_hash.push_back(found);
       }
       tree.leaf_list.push_back(found);
-      tree.leaf_lower_bound.push_back(subtree.lower_bound[leaf]);
-      tree.leaf_corner_distance.push_back(subtree.corner_distance[leaf]);
     }
     subtree = Subtree();  // release as we go
   }
@@ -828,7 +841,8 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
 
   stats.resolution = static_cast<int>(std::llround(tree.bounds().size().maxCoeff() / tree.cellSize(tree.max_depth)));
   stats.voxel_count = leaf_count;
-  stats.average_list_length = double(total_length) / double(std::max<std::int64_t>(leaf_count, 1));
+  stats.average_list_length =
+      double(total_length) / double(std::max<std::int64_t>(leaf_count - stats.leaves_without_list, 1));
   stats.longest_list = longest;
   stats.distinct_lists = std::int64_t(tree.list_offsets.size()) - 1;
   stats.coarsened = budget.exceeded;

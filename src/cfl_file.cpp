@@ -64,8 +64,8 @@ constexpr std::uint32_t kTagStatistics = makeTag("STAT");
 constexpr std::size_t kTreeSectionSize = 3 * 8 + 8 + 3 * 4 + 4 + 8 + 4;
 // Per leaf in LEAF: its list (u32), lower bound (f32) and eight corner distances (f32).
 constexpr std::size_t kLeafRecordSize = 4 + 4 + 8 * 4;
-// Seven 8-byte figures, the flags and the size of leaves_per_depth; its entries follow.
-constexpr std::size_t kStatisticsFixedSize = 7 * 8 + 4 + 8;
+// Eight 8-byte figures, the flags and the size of leaves_per_depth; its entries follow.
+constexpr std::size_t kStatisticsFixedSize = 8 * 8 + 4 + 8;
 // RegionTree::forEachLeafInBox keeps its pending cells in a fixed stack sized for this depth.
 constexpr int kMaxTreeDepth = 24;
 
@@ -371,7 +371,8 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
 
   // The lists.
   const auto& offsets = tree.list_offsets;
-  if (offsets.size() < 2) fail("list_offsets has " + std::to_string(offsets.size()) + " entries, needs at least 2");
+  // No list at all is possible when every leaf is one without a list (RegionTree::kNoList).
+  if (offsets.empty()) fail("list_offsets is empty, needs at least its leading 0");
   if (offsets.front() != 0) fail("list_offsets[0] is " + std::to_string(offsets.front()) + ", must be 0");
   if (offsets.back() != tree.list_triangles.size()) {
     fail("last list offset is " + std::to_string(offsets.back()) + ", but list_triangles has " +
@@ -412,10 +413,13 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
   }
 
   // The leaves.
+  std::int64_t without_list = 0;
   for (std::size_t leaf = 0; leaf < leaf_count; ++leaf) {
-    if (tree.leaf_list[leaf] >= list_count) {
+    if (tree.leaf_list[leaf] == RegionTree::kNoList) {
+      ++without_list;
+    } else if (tree.leaf_list[leaf] >= list_count) {
       fail("leaf_list of leaf " + std::to_string(leaf) + " is list " + std::to_string(tree.leaf_list[leaf]) +
-           ", out of range [0, " + std::to_string(list_count) + ")");
+           ", out of range [0, " + std::to_string(list_count) + ") and not RegionTree::kNoList");
     }
     const float lower = tree.leaf_lower_bound[leaf];
     if (!std::isfinite(lower) || lower < 0) {
@@ -433,6 +437,10 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
   const BuildStatistics& s = model.statistics;
   if (s.voxel_count != std::int64_t(leaf_count)) {
     fail("statistics say " + std::to_string(s.voxel_count) + " leaves, the regions have " + std::to_string(leaf_count));
+  }
+  if (s.leaves_without_list != without_list) {
+    fail("statistics say " + std::to_string(s.leaves_without_list) + " leaves without a list, the regions have " +
+         std::to_string(without_list));
   }
   if (s.leaves_per_depth != leaves_per_depth) {
     std::string said, found;
@@ -541,6 +549,7 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
   out.section(kTagStatistics, statistics_size);
   out.i64(s.resolution);
   out.i64(s.voxel_count);
+  out.i64(s.leaves_without_list);
   out.f64(s.average_list_length);
   out.i64(s.longest_list);
   out.i64(s.distinct_lists);
@@ -704,6 +713,7 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
       if (resolution < 0 || resolution > std::numeric_limits<int>::max()) in.fail("resolution out of range");
       s.resolution = static_cast<int>(resolution);
       s.voxel_count = in.i64("voxel count");
+      s.leaves_without_list = in.i64("leaves without a list");
       s.average_list_length = in.f64("average list length");
       s.longest_list = in.i64("longest list");
       s.distinct_lists = in.i64("distinct lists");

@@ -50,7 +50,8 @@ struct BuildStatistics {
   int resolution = 0;                 ///< Cells of the finest level along the longest axis of the regions.
   std::int64_t voxel_count = 0;       ///< Leaves (the cells that hold lists).
   std::vector<std::int64_t> leaves_per_depth;  ///< Leaves at each depth, root cells first.
-  double average_list_length = 0;     ///< Mean CFL length over all leaves.
+  std::int64_t leaves_without_list = 0;        ///< Leaves that store no list (RegionTree::kNoList).
+  double average_list_length = 0;     ///< Mean CFL length over the leaves that store one.
   std::int64_t longest_list = 0;
   std::int64_t distinct_lists = 0;    ///< Identical lists are stored once.
   std::int64_t memory_bytes = 0;      ///< Bytes the model's arrays hold (capacity), mesh and Bvh included.
@@ -77,8 +78,9 @@ struct CflModel {
 /// test shows another triangle strictly closer everywhere in V, or by topology culling.
 ///
 /// Adaptive (resolution 0): a root grid of 16 cells along the padded box's longest axis; a cell splits in
-/// eight while its list holds more than 8 triangles, it is larger than half the mean edge of those
-/// triangles, and it is not already smaller than half its distance from the mesh.
+/// eight while its list holds more than 8 triangles, it is larger than 1.25 mean edges of those triangles,
+/// and it is larger than its distance from the mesh. A leaf whose list still holds more than 64 triangles
+/// stores none (RegionTree::kNoList); queries use the Bvh there.
 ///
 /// Throws cfl::Error for an invalid mesh (see validateMesh), resolution < 0, padding < 1 or not finite, a
 /// negative memory_limit, or a uniform grid whose cells alone would exceed the memory limit (the message

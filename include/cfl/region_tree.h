@@ -34,6 +34,10 @@ struct RegionTree {
   /// first of n's eight children, stored consecutively, child c covering the octant with x-bit c & 1, y-bit
   /// (c >> 1) & 1, z-bit c >> 2 (set: the upper half).
   static constexpr std::uint32_t kLeafBit = 0x80000000u;
+  /// leaf_list value of a leaf that stores no list: its list would be longer than a walk of the mesh's Bvh
+  /// costs (far above a flat part, or among many tiny triangles), so queries test what falls in it against
+  /// the Bvh instead. Only adaptive regions have such leaves.
+  static constexpr std::uint32_t kNoList = 0xffffffffu;
 
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();  ///< Min corner of the root grid.
   double root_size = 0;                              ///< Edge of a root cell.
@@ -45,7 +49,7 @@ struct RegionTree {
   std::vector<std::uint32_t> nodes;
 
   /// Per leaf. leaf_list: index of its CFL (lists are shared between leaves whose ids, entry bounds and
-  /// depth agree). leaf_lower_bound: a lower bound on the distance from any point of the leaf to the mesh
+  /// depth agree), or kNoList. leaf_lower_bound: a lower bound on the distance from any point of the leaf to the mesh
   /// (0 where the mesh passes through it). leaf_corner_distance: the distance from each of its eight
   /// corners to the mesh, corner c at min_corner + size (c & 1, (c >> 1) & 1, c >> 2), rounded down to float:
   /// distance to a set is 1-Lipschitz, so dist(p, mesh) >= corner distance - |p - corner| for every p.
@@ -74,6 +78,8 @@ struct RegionTree {
     box.max = origin + root_size * Eigen::Vector3d(root_dims[0], root_dims[1], root_dims[2]);
     return box;
   }
+  bool hasList(std::uint32_t leaf) const { return leaf_list[leaf] != kNoList; }
+  /// The CFL of a leaf that has one (hasList) as a [begin, end) range of triangle ids.
   const std::int32_t* listBegin(std::uint32_t leaf) const { return list_triangles.data() + list_offsets[leaf_list[leaf]]; }
   const std::int32_t* listEnd(std::uint32_t leaf) const { return list_triangles.data() + list_offsets[leaf_list[leaf] + 1]; }
   const std::uint8_t* listBoundsBegin(std::uint32_t leaf) const {
@@ -118,9 +124,10 @@ struct RegionTree {
   }
 
   /// Calls visit(const RegionCell&) for every leaf whose closed box meets the closed box [lo, hi] (frame M;
-  /// clamped into the root grid). Allocation-free.
+  /// clamped into the root grid) until visit returns false. Returns false when it was stopped that way.
+  /// Allocation-free.
   template <class Visit>
-  void forEachLeafInBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, Visit&& visit) const {
+  bool forEachLeafInBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, Visit&& visit) const {
     Eigen::Vector3d qlo = (lo - origin) / root_size, qhi = (hi - origin) / root_size;
     int first[3], last[3];
     for (int axis = 0; axis < 3; ++axis) {
@@ -152,7 +159,7 @@ struct RegionTree {
               found.min_corner = origin + root_size * Eigen::Vector3d(cell.x, cell.y, cell.z);
               found.size = root_size * size;
               found.depth = cell.depth;
-              visit(static_cast<const RegionCell&>(found));
+              if (!visit(static_cast<const RegionCell&>(found))) return false;
               continue;
             }
             const double half = 0.5 * size;
@@ -169,6 +176,7 @@ struct RegionTree {
         }
       }
     }
+    return true;
   }
 };
 

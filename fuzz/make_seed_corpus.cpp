@@ -83,7 +83,16 @@ int main(int argc, char** argv) {
   options.resolution = 0;  // adaptive
   options.topology_culling = true;
   options.padding = 1.0;
-  write(out + "/valid_rod_adaptive.cfl", cfl::serializeCflModel(cfl::buildCflModel(rod(), options)));
+  cfl::CflModel rod_model = cfl::buildCflModel(rod(), options);
+  write(out + "/valid_rod_adaptive.cfl", cfl::serializeCflModel(rod_model));
+  // Every third leaf without a list (which the builder makes only for long lists, so not on a tiny mesh):
+  // a seed that reaches the loader's and the query's handling of such leaves.
+  for (std::size_t leaf = 0; leaf < rod_model.regions.leaf_list.size(); leaf += 3) {
+    if (rod_model.regions.leaf_list[leaf] == cfl::RegionTree::kNoList) continue;
+    rod_model.regions.leaf_list[leaf] = cfl::RegionTree::kNoList;
+    ++rod_model.statistics.leaves_without_list;
+  }
+  write(out + "/valid_rod_leaves_without_list.cfl", cfl::serializeCflModel(rod_model));
 
   std::vector<unsigned char> broken(tiny.begin(), tiny.begin() + tiny.size() / 2);
   write(out + "/broken_truncated.cfl", broken);

@@ -291,6 +291,7 @@ Bytes writeUnchecked(const CflModel& model) {
   section("STAT", [&](ByteWriter& out) {
     out.u64(static_cast<std::uint64_t>(s.resolution));
     out.u64(static_cast<std::uint64_t>(s.voxel_count));
+    out.u64(static_cast<std::uint64_t>(s.leaves_without_list));
     out.f64(s.average_list_length);
     out.u64(static_cast<std::uint64_t>(s.longest_list));
     out.u64(static_cast<std::uint64_t>(s.distinct_lists));
@@ -688,7 +689,7 @@ TEST_F(CflFileStructure, AbsurdCountsAreRefusedWithoutAllocating) {
   expectRefused(edited([&](Bytes& b) { putU64(b, list, huge); }), "list_offsets size");
   expectRefused(edited([&](Bytes& b) { putU64(b, list + 8, huge); }), "list_triangles size");
   expectRefused(edited([&](Bytes& b) { putU64(b, entry_bounds, huge); }), "list_entry_bounds size");
-  expectRefused(edited([&](Bytes& b) { putU64(b, stat + 60, huge); }), "leaves_per_depth size");
+  expectRefused(edited([&](Bytes& b) { putU64(b, stat + 68, huge); }), "leaves_per_depth size");
   expectRefused(edited([&](Bytes& b) { putU64(b, 16, huge); }), "truncated");
   // A section length past the end of the file.
   expectRefused(edited([&](Bytes& b) { putU64(b, list - 8, huge); }), "runs past the end");
@@ -850,8 +851,8 @@ TEST_F(CflFileStructure, LeavesReferencedTwiceOrNeverOrOutOfRangeAreRefused) {
                 "leaf_list of leaf 3 is list " + std::to_string(list_count) + ", out of range [0, " +
                     std::to_string(list_count) + ")");
   model = good;
-  model.regions.leaf_list.back() = 0xFFFFFFFFu;
-  expectModelRefused(model, "leaf_list of leaf " + std::to_string(leaf_count - 1) + " is list 4294967295");
+  model.regions.leaf_list.back() = 0x80000000u;
+  expectModelRefused(model, "leaf_list of leaf " + std::to_string(leaf_count - 1) + " is list 2147483648");
 }
 
 TEST_F(CflFileStructure, TreesDeeperThanTwentyFourLevelsAreRefused) {
@@ -913,13 +914,15 @@ TEST_F(CflFileStructure, StatisticsMustAgreeWithTheRegions) {
   expectRefused(editedAdaptive([&](Bytes& b) { putU64(b, stat + 8, getU64(b, stat + 8) + 1); }),
                 "statistics say " + std::to_string(good.statistics.voxel_count + 1) + " leaves");
   expectRefused(editedAdaptive([&](Bytes& b) {
-                  putU64(b, stat + 68, getU64(b, stat + 68) + 1);
-                  putU64(b, stat + 76, getU64(b, stat + 76) - 1);
+                  putU64(b, stat + 76, getU64(b, stat + 76) + 1);
+                  putU64(b, stat + 84, getU64(b, stat + 84) - 1);
                 }),
                 "statistics say leaves per depth [");
-  expectRefused(editedAdaptive([&](Bytes& b) { putU64(b, stat + 32, getU64(b, stat + 32) + 1); }), "distinct lists");
-  expectRefused(editedAdaptive([&](Bytes& b) { putU32(b, stat + 56, 2); }), "unknown statistics flags");
-  expectRefused(editedAdaptive([&](Bytes& b) { putF64(b, stat + 16, -1.0); }), "statistics hold a negative");
+  expectRefused(editedAdaptive([&](Bytes& b) { putU64(b, stat + 16, getU64(b, stat + 16) + 1); }),
+                "statistics say " + std::to_string(good.statistics.leaves_without_list + 1) + " leaves without a list");
+  expectRefused(editedAdaptive([&](Bytes& b) { putU64(b, stat + 40, getU64(b, stat + 40) + 1); }), "distinct lists");
+  expectRefused(editedAdaptive([&](Bytes& b) { putU32(b, stat + 64, 2); }), "unknown statistics flags");
+  expectRefused(editedAdaptive([&](Bytes& b) { putF64(b, stat + 24, -1.0); }), "statistics hold a negative");
   expectRefused(editedAdaptive([&](Bytes& b) { putU64(b, stat, 0); }), "statistics hold a negative");
   // The coarsened flag is kept.
   CflModel coarsened = good;
@@ -979,8 +982,66 @@ TEST_F(CflFileStructure, NonFiniteValuesAreRefused) {
   expectRefused(edited([&](Bytes& b) { putF32(b, corners_at, std::numeric_limits<float>::infinity()); }),
                 "leaf_corner_distance of leaf 0 corner 0 is inf");
   const std::size_t stat = sectionBody(good_, "STAT");
-  expectRefused(edited([&](Bytes& b) { putF64(b, stat + 16, nan); }), "non-finite");
-  expectRefused(edited([&](Bytes& b) { putF64(b, stat + 48, inf); }), "non-finite");
+  expectRefused(edited([&](Bytes& b) { putF64(b, stat + 24, nan); }), "non-finite");
+  expectRefused(edited([&](Bytes& b) { putF64(b, stat + 56, inf); }), "non-finite");
+}
+
+// Leaves that store no list (RegionTree::kNoList) send the query to the Bvh. Made here from a built model,
+// so that the test does not depend on which leaves the builder leaves without one: dropping a leaf's list
+// keeps the model exact.
+CflModel withoutLists(const CflModel& good, std::uint32_t every) {
+  CflModel model = good;
+  RegionTree& tree = model.regions;
+  for (std::size_t leaf = 0; leaf < tree.leaf_list.size(); leaf += every) {
+    if (tree.leaf_list[leaf] == RegionTree::kNoList) continue;
+    tree.leaf_list[leaf] = RegionTree::kNoList;
+    ++model.statistics.leaves_without_list;
+  }
+  return model;
+}
+
+TEST(CflFile, LeavesWithoutAListRoundTripAndAreChecked) {
+  const MeshModel b = makeMeshModel(test::makeTorus(0.2, 0.05, 12, 6));
+  for (const CflModel* good : {&smallModel(), &adaptiveModel()}) {
+    for (std::uint32_t every : {3u, 1u}) {
+      const CflModel model = withoutLists(*good, every);
+      const Bytes bytes = serializeCflModel(model);
+      EXPECT_EQ(bytes, writeUnchecked(model));
+      const CflModel loaded = deserializeCflModel(bytes.data(), bytes.size(), kName);
+      expectSameModel(model, loaded);
+      EXPECT_EQ(loaded.statistics.leaves_without_list, model.statistics.leaves_without_list);
+      test::Rng rng(29);
+      const double diagonal = good->geometry.bounds.diagonal();
+      for (int i = 0; i < 10; ++i) {
+        const Eigen::Isometry3d X_WB = test::randomPose(rng, diagonal);
+        const double truth = bruteForceDistance(good->geometry, Eigen::Isometry3d::Identity(), b, X_WB).distance;
+        for (QueryMode mode : {QueryMode::kHierarchical, QueryMode::kPaper}) {
+          DistanceOptions options;
+          options.mode = mode;
+          EXPECT_NEAR(computeDistance(loaded, Eigen::Isometry3d::Identity(), b, X_WB, options).distance, truth,
+                      1e-9 * diagonal)
+              << "every " << every << " pose " << i;
+        }
+      }
+    }
+  }
+  // No lists at all.
+  CflModel none = withoutLists(adaptiveModel(), 1);
+  none.regions.list_offsets = {0};
+  none.regions.list_triangles.clear();
+  none.regions.list_entry_bounds.clear();
+  none.statistics.distinct_lists = 0;
+  const Bytes bytes = serializeCflModel(none);
+  expectSameModel(none, deserializeCflModel(bytes.data(), bytes.size(), kName));
+  none.regions.list_offsets.clear();
+  expectModelRefused(none, "list_offsets is empty");
+  // A count that disagrees, and a list index that is neither a list nor kNoList.
+  CflModel model = withoutLists(adaptiveModel(), 3);
+  --model.statistics.leaves_without_list;
+  expectModelRefused(model, "leaves without a list, the regions have");
+  model = adaptiveModel();
+  model.regions.leaf_list[2] = RegionTree::kNoList - 1;
+  expectModelRefused(model, "leaf_list of leaf 2 is list 4294967294, out of range");
 }
 
 // Values a hostile file may hold that pass every check (finite, in range) but are far from the truth: the

@@ -56,11 +56,12 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model);
 ///   children inside the array), so that no walk loops; every node but the roots is the child of exactly
 ///   one parent; no cell is deeper than max_depth, which is the deepest leaf's depth; every leaf index is
 ///   in range and named by exactly one node;
-/// - the leaves: list index in range, lower bound and corner distances finite and >= 0;
+/// - the leaves: list index in range or RegionTree::kNoList (no list: queries use the Bvh there), lower
+///   bound and corner distances finite and >= 0;
 /// - the lists: offsets from 0 to the entry count, increasing, no list empty, triangle ids in range, each
 ///   list sorted by (entry bound, id);
 /// - padding finite and >= 1, statistics finite, non-negative and consistent with the tree (leaf count,
-///   leaves per depth, distinct lists).
+///   leaves without a list, leaves per depth, distinct lists).
 /// Any failure throws cfl::Error whose message starts with `name_for_errors` (usually the file path) and
 /// says what is wrong, e.g.
 /// "robot.cfl: checksum mismatch (payload CRC-32 is 0x1c291ca3, header says 0x5d0f4e12): the file is corrupt".

@@ -191,6 +191,11 @@ struct ListScratch {
   std::vector<double> quick_bounds;      // per list entry: cubeTriangleQuickBound, before the full bound
 };
 
+// The default memory limit of the regions: the smaller of half the machine's memory and this much, so that
+// a mesh whose refinement would run away (tiny features everywhere) gets coarser leaves instead of gigabytes.
+constexpr std::int64_t kDefaultRegionBytes = std::int64_t(32) << 20;
+constexpr std::int64_t kDefaultRegionBytesPerTriangle = 2048;
+
 // Root cells along the longest axis of an adaptive build's box: coarse enough that far space costs little,
 // fine enough that the cells near the mesh spread over the workers.
 constexpr int kAdaptiveRootCells = 16;
@@ -530,16 +535,20 @@ float lowerFloat(double x) {
 }
 
 // When to split a cell: its list is longer than kListTarget, it is larger than kSmallestCell times the mean
-// edge of its listed triangles (the uniform grid's tuned voxel was 1.25 mean edges; smaller cells would not
-// shorten a list of triangles around one vertex, and would multiply the cells a query visits), and it is
+// edge of the triangles it lists (the uniform grid's tuned voxel was 1.25 mean edges; smaller cells would
+// not shorten a list of triangles around one vertex, and would multiply the cells a query visits), and it is
 // larger than kFarCellRatio times its distance from the mesh (far away, a list shortens only in cells that
 // shrink with the distance, and far cells serve only far queries, which the Bvh bounds mostly answer).
 constexpr std::uint32_t kListTarget = 8;
 constexpr double kSmallestCell = 1.25;
-constexpr double kFarCellRatio = 1.0;  // cells no larger than this times their distance stay whole
+constexpr double kFarCellRatio = 1.0;
 // A leaf whose list stays longer than this stores none (RegionTree::kNoList): scanning it would cost more
 // than testing what falls there against the Bvh, and storing it more memory than the rest of the model.
-constexpr std::uint32_t kLongestList = 64;
+// Next to the mesh (a leaf no farther from it than its edge) lists are what short-range queries scan, and
+// the entry bounds cut most of a long one short; a thin plate's leaves list both faces. Farther out a leaf
+// serves only farther queries, which its lower bound mostly dismisses.
+constexpr std::uint32_t kLongestNearList = 256;
+constexpr std::uint32_t kLongestFarList = 32;
 constexpr int kDeepest = 20;           // levels below the root; RegionTree::forEachLeafInBox's stack allows 24
 
 // Shared across the root cells' builds: the bytes committed so far, against the memory limit.
@@ -560,9 +569,7 @@ class SubtreeBuilder {
              const double corner_distance[8], const int corner_triangle[8], std::uint32_t slot, Subtree& out) const {
     const std::size_t begin = out.lists.ids.size();
     const std::uint32_t length = computeCellList(context_, scratch, min_corner, size, corner_triangle, out.lists);
-    double lowest_corner = kInfinity;
-    for (int n = 0; n < 8; ++n) lowest_corner = std::min(lowest_corner, corner_distance[n]);
-    if (shouldSplit(out, begin, length, size, depth, lowest_corner)) {
+    if (shouldSplit(out, begin, length, size, depth)) {
       out.lists.ids.resize(begin);
       out.lists.bounds.resize(begin);
       split(scratch, min_corner, size, depth, corner_distance, corner_triangle, slot, out);
@@ -570,7 +577,8 @@ class SubtreeBuilder {
     }
     const std::uint32_t leaf = static_cast<std::uint32_t>(out.list_length.size());
     out.nodes[slot] = RegionTree::kLeafBit | leaf;
-    const bool stored = !adaptive_ || length <= kLongestList;
+    const bool near = out.lists.lower_bound <= size;
+    const bool stored = !adaptive_ || length <= (near ? kLongestNearList : kLongestFarList);
     if (!stored) {
       out.lists.ids.resize(begin);
       out.lists.bounds.resize(begin);
@@ -589,15 +597,13 @@ class SubtreeBuilder {
   static constexpr std::int64_t kLeafBytes =
       sizeof(std::uint32_t) * 2 + sizeof(float) + sizeof(std::array<float, 8>);
 
-  bool shouldSplit(const Subtree& out, std::size_t begin, std::uint32_t length, double size, int depth,
-                   double lowest_corner) const {
-    if (!adaptive_ || length <= kListTarget || depth >= kDeepest) return false;
-    // The distance from the cell to the mesh is at least the lowest corner's minus the cell's diagonal.
-    const double distance = lowest_corner - std::sqrt(3.0) * size;
-    if (size <= kFarCellRatio * distance) return false;
+  bool shouldSplit(const Subtree& out, std::size_t begin, std::uint32_t length, double size, int depth) const {
+    if (!adaptive_ || depth >= kDeepest) return false;
+    // The detail the cell is near: its listed triangles' mean edge.
     double edge = 0;
     for (std::size_t n = begin; n < begin + length; ++n) edge += triangle_edge_[out.lists.ids[n]];
-    if (size <= kSmallestCell * edge / length) return false;
+    if (!(size > kSmallestCell * edge / std::max<std::uint32_t>(length, 1))) return false;
+    if (length <= kListTarget || size <= kFarCellRatio * out.lists.lower_bound) return false;
     if (budget_.bytes.load(std::memory_order_relaxed) > budget_.limit) {
       budget_.exceeded = true;
       return false;
@@ -676,7 +682,11 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   // Adaptive: a coarse root grid whose cells split where needed; uniform: the paper's grid, no splits.
   tree = makeRootGrid(geometry.bounds, adaptive ? kAdaptiveRootCells : options.resolution, options.padding);
   const std::int64_t root_count = tree.rootCount();
-  const std::int64_t memory_limit = options.memory_limit > 0 ? options.memory_limit : physicalMemoryBytes() / 2;
+  const std::int64_t memory_limit =
+      options.memory_limit > 0
+          ? options.memory_limit
+          : std::min(physicalMemoryBytes() / 2,
+                     kDefaultRegionBytes + kDefaultRegionBytesPerTriangle * std::int64_t(geometry.corners.size()));
   // Every root cell costs its node, its corners and its leaf arrays at the least.
   const std::int64_t floor_bytes = root_count * std::int64_t(sizeof(std::uint32_t) * 3 + sizeof(float) * 9);
   if (root_count > std::numeric_limits<std::uint32_t>::max() / 4 || floor_bytes > memory_limit) {

@@ -27,7 +27,8 @@ struct Shape {
   std::string name;
   TriangleMesh mesh;
   MeshModel model;
-  CflModel cfl;
+  CflModel cfl;          // at the resolution asked for (0: adaptive regions)
+  CflModel cfl_adaptive; // adaptive regions, what a user gets by default
   double diagonal = 0;
 };
 
@@ -38,9 +39,37 @@ std::unique_ptr<Shape> makeShape(const std::string& name, TriangleMesh mesh, int
   shape->model = makeMeshModel(mesh);
   BuildOptions options;
   options.resolution = resolution;
-  shape->cfl = buildCflModel(std::move(mesh), options);
+  shape->cfl = buildCflModel(mesh, options);
+  shape->cfl_adaptive = resolution == 0 ? shape->cfl : buildCflModel(std::move(mesh), BuildOptions{});
   shape->diagonal = shape->model.bounds.diagonal();
   return shape;
+}
+
+// A large two-triangle ground with a small detailed torus on it, in one mesh: huge triangles next to small
+// ones, leaves without lists over the ground, and B's ground triangles meeting many leaves of A.
+TriangleMesh makeGroundWithTorus() {
+  TriangleMesh mesh = test::makeTorus(0.2, 0.07, 12, 6);
+  for (Eigen::Vector3d& v : mesh.vertices) v.z() += 0.08;
+  const int first = static_cast<int>(mesh.vertices.size());
+  mesh.vertices.insert(mesh.vertices.end(), {{-5, -5, 0}, {5, -5, 0}, {5, 5, 0}, {-5, 5, 0}});
+  mesh.triangles.push_back({first, first + 1, first + 2});
+  mesh.triangles.push_back({first, first + 2, first + 3});
+  return mesh;
+}
+
+// Two long wavy layers 0.04 apart, facing each other: the lists near them hold both.
+TriangleMesh makeThinSlab() {
+  const TriangleMesh sheet = test::makeWavySheet(1.0, 0.05, 10);
+  TriangleMesh slab;
+  for (int layer = 0; layer < 2; ++layer) {
+    const int offset = static_cast<int>(slab.vertices.size());
+    for (const Eigen::Vector3d& v : sheet.vertices) slab.vertices.emplace_back(6 * v.x(), v.y(), v.z() + 0.04 * layer);
+    for (const auto& t : sheet.triangles) {
+      slab.triangles.push_back(layer == 0 ? std::array<int, 3>{t[0] + offset, t[1] + offset, t[2] + offset}
+                                          : std::array<int, 3>{t[0] + offset, t[2] + offset, t[1] + offset});
+    }
+  }
+  return slab;
 }
 
 // Built once for the whole executable. Small meshes (70-250 triangles) keep brute force affordable over
@@ -55,6 +84,8 @@ const std::vector<std::unique_ptr<Shape>>& shapes() {
     v.push_back(makeShape("messy", test::makeMessyMesh(10, 6), 12));
     v.push_back(makeShape("wavy_sheet", test::makeWavySheet(1.0, 0.3, 8), 12));
     v.push_back(makeShape("self_intersecting", test::makeSelfIntersectingMesh(10, 5), 12));
+    v.push_back(makeShape("ground_torus", makeGroundWithTorus(), 0));
+    v.push_back(makeShape("thin_slab", makeThinSlab(), 0));
     return v;
   }();
   return all;
@@ -204,8 +235,9 @@ struct PairCase {
 
 // Every mesh appears as A and as B, and every mesh meets a differently shaped partner.
 const PairCase kPairs[] = {
-    {"torus", "knot"},       {"knot", "soup"},        {"soup", "hemisphere"},         {"hemisphere", "messy"},
-    {"messy", "wavy_sheet"}, {"wavy_sheet", "torus"}, {"self_intersecting", "knot"},  {"knot", "knot"},
+    {"torus", "knot"},        {"knot", "soup"},        {"soup", "hemisphere"},        {"hemisphere", "messy"},
+    {"messy", "wavy_sheet"},  {"wavy_sheet", "torus"}, {"self_intersecting", "knot"}, {"knot", "knot"},
+    {"ground_torus", "knot"}, {"thin_slab", "ground_torus"}, {"knot", "thin_slab"},
 };
 
 // The bulk of the suite: 8 pairs x 7 separations x 18 = 1008 poses, 4 queries each (both modes, both
@@ -234,6 +266,8 @@ TEST(ComputeDistance, MatchesBruteForceOnRandomPosesInBothModesAndOverloads) {
                       mode_name + ", B as MeshModel", failures);
           checkResult(computeDistance(a.cfl, pose.X_WA, b.cfl, pose.X_WB, options), truth, a, b, pose,
                       mode_name + ", B as CflModel", failures);
+          checkResult(computeDistance(a.cfl_adaptive, pose.X_WA, b.model, pose.X_WB, options), truth, a, b, pose,
+                      mode_name + ", adaptive A", failures);
         }
       }
     }
@@ -241,6 +275,17 @@ TEST(ComputeDistance, MatchesBruteForceOnRandomPosesInBothModesAndOverloads) {
   EXPECT_EQ(failures.count(), 0) << "of " << poses << " poses";
   // The overlapping and touching poses must really have produced contact, or the suite tests less than it says.
   EXPECT_GE(overlapping, static_cast<int>(std::size(kPairs)) * kPosesPerSeparation) << "too few overlapping poses";
+}
+
+// The shapes above reach the adaptive query's special paths, or the test above checks less than it says:
+// refined leaves, leaves without a list (their triangles go to A's Bvh) and long lists.
+TEST(ComputeDistance, TheAdaptiveShapesReachLeavesWithoutListsAndRefinedLeaves) {
+  const BuildStatistics& ground = shape("ground_torus").cfl.statistics;
+  const BuildStatistics& slab = shape("thin_slab").cfl.statistics;
+  EXPECT_GT(ground.leaves_without_list + slab.leaves_without_list, 0);
+  EXPECT_GT(shape("ground_torus").cfl.regions.max_depth, 1);
+  EXPECT_GT(shape("thin_slab").cfl.regions.max_depth, 1);
+  EXPECT_GT(slab.longest_list, 8);
 }
 
 // Sheets facing each other across gaps far narrower than their triangles: where the query bounds B's

@@ -128,6 +128,7 @@ void printStatistics(const CflModel& model, std::ostream& out) {
     out << format("  depth %2zu:          %lld of edge %g\n", depth, static_cast<long long>(s.leaves_per_depth[depth]),
                   r.cellSize(int(depth)));
   }
+  out << format("without a list:      %lld (queries use the Bvh there)\n", static_cast<long long>(s.leaves_without_list));
   out << format("average CFL length:  %.3f\n", s.average_list_length);
   out << format("longest CFL:         %lld\n", static_cast<long long>(s.longest_list));
   out << format("distinct lists:      %lld\n", static_cast<long long>(s.distinct_lists));

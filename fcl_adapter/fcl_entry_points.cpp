@@ -213,7 +213,8 @@ cfl::DistanceOptions optionsOf(const fcl::DistanceRequest<double>& request,
   return options;
 }
 
-// Records a CFL answer in FCL's result, in the caller's order: side 1 is o1. FCL's update keeps the
+// Records a CFL answer in FCL's result, in the caller's order: side 1 is o1, which was the query's A when
+// `cfl_is_first` (its B otherwise). FCL's update keeps the
 // previous pair unless this one is closer, which broadphase callbacks rely on. A query under an upper bound
 // that found no closer pair (distance infinity, ids -1) leaves the result as it was, as FCL leaves it when
 // the pair does not beat the best.
@@ -316,7 +317,14 @@ double distanceImpl(const Geometry* o1, const Transform& tf1, const Owner* owner
   if (request.isSatisfied(result)) return result.min_distance;
   const cfl::DistanceOptions options = optionsOf(request, result);
   if (c1 != nullptr && c2 != nullptr) {
-    report(cfl::computeDistance(c1->model(), tf1, c2->model(), tf2, options), true, o1, o2, request, result);
+    // The query is fast where the other mesh lies inside A's grid and falls back to the two Bvhs outside it, so
+    // A is the larger model (by bounding-box diagonal), whose grid covers more of the smaller one: a link
+    // against a table, a shelf or a boulder. The distance is the same either way; equal sizes keep the
+    // argument order.
+    if (c2->model().geometry.bounds.diagonal() > c1->model().geometry.bounds.diagonal())
+      report(cfl::computeDistance(c2->model(), tf2, c1->model(), tf1, options), false, o1, o2, request, result);
+    else
+      report(cfl::computeDistance(c1->model(), tf1, c2->model(), tf2, options), true, o1, o2, request, result);
     return result.min_distance;
   }
   const bool cfl_is_first = c1 != nullptr;

@@ -462,12 +462,14 @@ int run(const std::vector<std::string>& args) {
 
   std::printf("cfl_scene_bench: %d configurations of a 4-link arm, %d repeats, interleaved, %s clock, seed %llu\n",
               poses, repeats, clock_name == "cpu" ? "thread CPU" : "wall", static_cast<unsigned long long>(seed));
-  std::printf("%-22s %9s %9s %s\n", "mesh", "triangles", "CFL build", "");
+  std::printf("%-22s %9s %9s %s\n", "mesh", "triangles", "CFL build", "in");
   for (const auto* group : {&links, &world}) {
-    for (const SceneMesh& m : *group)
-      std::printf("%-22s %9zu %9s %s\n", m.name.c_str(), m.mesh.triangles.size(),
-                  m.cfl_build_seconds < 0 ? "loaded" : (std::to_string(m.cfl_build_seconds).substr(0, 6) + "s").c_str(),
+    for (const SceneMesh& m : *group) {
+      char build[32] = "loaded";
+      if (m.cfl_build_seconds >= 0) std::snprintf(build, sizeof build, "%.3f s", m.cfl_build_seconds);
+      std::printf("%-22s %9zu %9s %s\n", m.name.c_str(), m.mesh.triangles.size(), build,
                   group == &links ? "link" : "world");
+    }
   }
   std::printf("minimum distance over the configurations: median %.4g m, %d of %d overlapping\n\n",
               cfl::bench::median(separations), overlapping, poses);

@@ -214,10 +214,9 @@ cfl::DistanceOptions optionsOf(const fcl::DistanceRequest<double>& request,
 }
 
 // Records a CFL answer in FCL's result, in the caller's order: side 1 is o1, which was the query's A when
-// `cfl_is_first` (its B otherwise). FCL's update keeps the
-// previous pair unless this one is closer, which broadphase callbacks rely on. A query under an upper bound
-// that found no closer pair (distance infinity, ids -1) leaves the result as it was, as FCL leaves it when
-// the pair does not beat the best.
+// `cfl_is_first` (its B otherwise). FCL's update keeps the previous pair unless this one is closer, which
+// broadphase callbacks rely on. A query under an upper bound that found no closer pair (distance infinity,
+// ids -1) leaves the result as it was, as FCL leaves it when the pair does not beat the best.
 void report(const cfl::DistanceResult& r, bool cfl_is_first, const Geometry* o1, const Geometry* o2,
             const fcl::DistanceRequest<double>& request, fcl::DistanceResult<double>& result) {
   if (r.triangle_a < 0) return;

@@ -195,17 +195,31 @@ const CFLGeometry* asCfl(const Geometry* g) {
   return dynamic_cast<const CFLGeometry*>(g);
 }
 
-cfl::DistanceOptions optionsOf(const fcl::DistanceRequest<double>& request) {
+// The core's options for a query whose answer goes into `result`. The distance `result` already holds is the
+// upper bound: FCL's DistanceResult::update keeps the previous pair unless the new one is strictly closer,
+// so a pair that cannot beat it would be thrown away anyway, and the core can dismiss it as soon as its
+// bounds reach it. That is what FCL's own mesh traversal does with the incoming result (its canStop tests
+// against result.min_distance), and what makes a broadphase pass cheap: the managers hand every candidate
+// pair the same result, holding the best distance so far. FCL starts a result at DBL_MAX ("nothing yet"),
+// which is passed as infinity, the core's "no bound".
+cfl::DistanceOptions optionsOf(const fcl::DistanceRequest<double>& request,
+                               const fcl::DistanceResult<double>& result) {
   cfl::DistanceOptions options;
   options.rel_err = request.rel_err;
   options.abs_err = request.abs_err;
+  // isSatisfied() returned early for min_distance <= 0, so the bound is positive here (or NaN, which the core
+  // rejects with an error naming upper_bound).
+  if (result.min_distance < std::numeric_limits<double>::max()) options.upper_bound = result.min_distance;
   return options;
 }
 
-// Records a CFL answer in FCL's result, in the caller's order: side 1 is o1. FCL's update keeps the
-// previous pair unless this one is closer, which broadphase callbacks rely on.
+// Records a CFL answer in FCL's result, in the caller's order: side 1 is o1, which was the query's A when
+// `cfl_is_first` (its B otherwise). FCL's update keeps the previous pair unless this one is closer, which
+// broadphase callbacks rely on. A query under an upper bound that found no closer pair (distance infinity,
+// ids -1) leaves the result as it was, as FCL leaves it when the pair does not beat the best.
 void report(const cfl::DistanceResult& r, bool cfl_is_first, const Geometry* o1, const Geometry* o2,
             const fcl::DistanceRequest<double>& request, fcl::DistanceResult<double>& result) {
+  if (r.triangle_a < 0) return;
   const int b1 = cfl_is_first ? r.triangle_a : r.triangle_b;
   const int b2 = cfl_is_first ? r.triangle_b : r.triangle_a;
   if (request.enable_nearest_points) {
@@ -289,7 +303,9 @@ double planeDistance(const CFLGeometry& c, const Transform& tf_c, const Geometry
     result.update(best, &c, shape, best_triangle, fcl::DistanceResult<double>::NONE, on_mesh, on_shape);
   else
     result.update(best, &c, shape, best_triangle, fcl::DistanceResult<double>::NONE);
-  return best;
+  // What FCL's mesh pairs return: the result's distance, which stays the previous one when this pair is not
+  // closer (a broadphase callback may read either).
+  return result.min_distance;
 }
 
 double distanceImpl(const Geometry* o1, const Transform& tf1, const Owner* owner1, const Geometry* o2,
@@ -298,9 +314,16 @@ double distanceImpl(const Geometry* o1, const Transform& tf1, const Owner* owner
   const CFLGeometry* c1 = asCfl(o1);
   const CFLGeometry* c2 = asCfl(o2);
   if (request.isSatisfied(result)) return result.min_distance;
-  const cfl::DistanceOptions options = optionsOf(request);
+  const cfl::DistanceOptions options = optionsOf(request, result);
   if (c1 != nullptr && c2 != nullptr) {
-    report(cfl::computeDistance(c1->model(), tf1, c2->model(), tf2, options), true, o1, o2, request, result);
+    // The query is fast where the other mesh lies inside A's grid and falls back to the two Bvhs outside it, so
+    // A is the larger model (by bounding-box diagonal), whose grid covers more of the smaller one: a link
+    // against a table, a shelf or a boulder. The distance is the same either way; equal sizes keep the
+    // argument order.
+    if (c2->model().geometry.bounds.diagonal() > c1->model().geometry.bounds.diagonal())
+      report(cfl::computeDistance(c2->model(), tf2, c1->model(), tf1, options), false, o1, o2, request, result);
+    else
+      report(cfl::computeDistance(c1->model(), tf1, c2->model(), tf2, options), true, o1, o2, request, result);
     return result.min_distance;
   }
   const bool cfl_is_first = c1 != nullptr;
@@ -314,6 +337,8 @@ double distanceImpl(const Geometry* o1, const Transform& tf1, const Owner* owner
   }
   if (other->getNodeType() == fcl::GEOM_PLANE || other->getNodeType() == fcl::GEOM_HALFSPACE)
     return planeDistance(*c, tf_c, other, tf_other, request, result);
+  // FCL's shape-mesh traversal prunes against the incoming result.min_distance itself, so a broadphase's
+  // best distance so far bounds this path too.
   const fcl::BVHModel<fcl::OBBRSSd>* proxy = &c->shapeProxy();
   const double d = requireFcl().distance_geometries(cfl_is_first ? proxy : o1, tf1, cfl_is_first ? o2 : proxy, tf2,
                                                     request, result);

@@ -2,54 +2,79 @@
 
 #include "cfl/error.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
-#include <atomic>
-#include <exception>
-#include <mutex>
 #include <string>
-#include <thread>
+
+// ThreadSanitizer does not see the synchronization inside libtbb.so (not instrumented), so without help it
+// takes the caller's writes before the batch and its reads after it as racing with the chunks. The
+// annotations below state the order TBB guarantees: parallel_for starts every chunk after the call and
+// returns after every chunk. They compile to nothing outside TSan builds.
+#if defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define CFL_TSAN 1
+#endif
+#endif
+#if defined(__SANITIZE_THREAD__)
+#define CFL_TSAN 1
+#endif
+#ifdef CFL_TSAN
+#include <sanitizer/tsan_interface.h>
+#endif
 
 namespace cfl {
 namespace {
 
-// Runs query(i) for every i in [0, count) on `threads` threads (the caller is one of them), handing out
-// chunks from a shared counter so that a few expensive queries do not leave the other threads idle.
+inline void tsanRelease([[maybe_unused]] void* token) {
+#ifdef CFL_TSAN
+  __tsan_release(token);
+#endif
+}
+inline void tsanAcquire([[maybe_unused]] void* token) {
+#ifdef CFL_TSAN
+  __tsan_acquire(token);
+#endif
+}
+
+// Runs query(i) for every i in [0, count) on up to `threads` threads (the caller is one of them) in chunks of
+// about options.chunk_size poses, through oneTBB: a task arena capped at `threads` slots, so the batch never
+// uses more threads than asked even when the program runs other TBB work, and a parallel_for over
+// chunk-sized ranges whose idle threads steal the remaining chunks, so a few expensive queries do not leave
+// the other threads idle. Each query writes only its own result, so the answers do not depend on which
+// thread ran which chunk. An exception thrown by a query (poses are validated up front, so std::bad_alloc or
+// the like) cancels the chunks not yet started and is rethrown in the caller by TBB.
 template <typename Query>
 void runParallel(std::size_t count, const BatchOptions& options, const Query& query) {
   const int threads = batchThreadCount(options.threads, count);
-  std::size_t chunk = options.chunk_size > 0 ? static_cast<std::size_t>(options.chunk_size)
-                                             : std::clamp<std::size_t>(count / (8 * std::size_t(threads)), 1, 64);
+  const std::size_t chunk = options.chunk_size > 0
+                                ? static_cast<std::size_t>(options.chunk_size)
+                                : std::clamp<std::size_t>(count / (8 * std::size_t(threads)), 1, 64);
   if (threads <= 1) {
     for (std::size_t i = 0; i < count; ++i) query(i);
     return;
   }
-
-  std::atomic<std::size_t> next{0};
-  std::atomic<bool> failed{false};
-  std::exception_ptr first_error;
-  std::mutex error_mutex;
-  const auto work = [&] {
-    try {
-      while (!failed.load(std::memory_order_relaxed)) {
-        const std::size_t begin = next.fetch_add(chunk, std::memory_order_relaxed);
-        if (begin >= count) break;
-        const std::size_t end = std::min(count, begin + chunk);
-        for (std::size_t i = begin; i < end; ++i) query(i);
-      }
-    } catch (...) {
-      // Poses are validated up front, so this is only std::bad_alloc or the like; stop everyone and
-      // rethrow it in the caller.
-      std::lock_guard<std::mutex> lock(error_mutex);
-      if (!first_error) first_error = std::current_exception();
-      failed = true;
-    }
-  };
-  std::vector<std::thread> workers;
-  workers.reserve(threads - 1);
-  for (int t = 1; t < threads; ++t) workers.emplace_back(work);
-  work();
-  for (std::thread& worker : workers) worker.join();
-  if (first_error) std::rethrow_exception(first_error);
+  int before = 0, after = 0;  // Addresses for the TSan annotations only.
+  tsanRelease(&before);
+  tbb::task_arena arena(threads);
+  arena.execute([&] {
+    // simple_partitioner splits down to the grain size and no further: chunks of chunk / 2 to chunk poses,
+    // each a unit of stealing, as BatchOptions::chunk_size documents.
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, count, chunk),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+          tsanAcquire(&before);
+          for (std::size_t i = range.begin(); i != range.end(); ++i) query(i);
+          tsanRelease(&after);
+        },
+        tbb::simple_partitioner());
+  });
+  tsanAcquire(&after);
 }
 
 void validatePoses(const Eigen::Isometry3d& X_WA, const Eigen::Isometry3d* X_WB, std::size_t count,
@@ -74,7 +99,13 @@ void computeDistancesImpl(const CflModel& a, const Eigen::Isometry3d& X_WA, cons
 }  // namespace
 
 int batchThreadCount(int requested, std::size_t count) {
-  int threads = requested > 0 ? requested : static_cast<int>(std::thread::hardware_concurrency());
+  // TBB's count of the hardware threads this process may run on (it honours CPU affinity masks).
+  int threads = requested > 0 ? requested : tbb::info::default_concurrency();
+  // No more than TBB will run at once (the hardware threads, unless the program set a tbb::global_control):
+  // an arena asking for more gets no more threads, only a warning from TBB on stderr.
+  const std::size_t allowed =
+      tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+  if (allowed < static_cast<std::size_t>(threads)) threads = static_cast<int>(allowed);
   threads = std::max(threads, 1);
   if (count < static_cast<std::size_t>(threads)) threads = static_cast<int>(std::max<std::size_t>(count, 1));
   return threads;

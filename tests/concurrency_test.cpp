@@ -10,6 +10,7 @@
 #include "support/test_meshes.h"
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <atomic>
 #include <cstring>
@@ -143,6 +144,39 @@ TEST(Concurrency, BatchAnswersAreTheSerialAnswersForEveryThreadCountAndChunkSize
   computeDistances(s.a, s.X_WA, s.b_cfl, s.poses.data(), s.poses.size(), batch.data(), options);
   for (std::size_t i = 0; i < s.poses.size(); ++i) {
     EXPECT_TRUE(sameAnswer(computeDistance(s.a, s.X_WA, s.b_cfl, s.poses[i]), batch[i])) << "pose " << i;
+  }
+}
+
+// Batches started from several threads at once, each in its own TBB arena on TBB's shared workers, and a
+// batch under a tbb::global_control that allows one thread: every one gives the serial answers, and the
+// thread count reported follows the caps BatchOptions::threads documents.
+TEST(Concurrency, ConcurrentBatchesAndAOneThreadLimitGiveTheSerialAnswers) {
+  const Scene& s = scene();
+  const std::vector<DistanceResult> serial = serialAnswers({});
+  std::atomic<int> mismatches{0};
+  std::vector<std::thread> callers;
+  for (int t = 0; t < 3; ++t) {
+    callers.emplace_back([&, t] {
+      BatchOptions options;
+      options.threads = t + 1;
+      options.chunk_size = 1 + 3 * t;
+      const std::vector<DistanceResult> batch = computeDistances(s.a, s.X_WA, s.b, s.poses, options);
+      for (std::size_t i = 0; i < serial.size(); ++i) mismatches += !sameAnswer(serial[i], batch[i]);
+    });
+  }
+  for (auto& caller : callers) caller.join();
+  EXPECT_EQ(mismatches.load(), 0);
+
+  EXPECT_EQ(batchThreadCount(4, 3), std::min(3, batchThreadCount(4, 1000)));
+  EXPECT_EQ(batchThreadCount(0, 1), 1);
+  {
+    const tbb::global_control one_thread(tbb::global_control::max_allowed_parallelism, 1);
+    EXPECT_EQ(batchThreadCount(0, 1000), 1);
+    EXPECT_EQ(batchThreadCount(8, 1000), 1);
+    BatchOptions options;
+    options.threads = 8;
+    const std::vector<DistanceResult> batch = computeDistances(s.a, s.X_WA, s.b, s.poses, options);
+    for (std::size_t i = 0; i < serial.size(); ++i) EXPECT_TRUE(sameAnswer(serial[i], batch[i])) << "pose " << i;
   }
 }
 

@@ -16,8 +16,10 @@ namespace cfl {
 struct BatchOptions {
   /// Options of every single query (mode, tolerances, hint); the same for all poses.
   DistanceOptions distance;
-  /// Worker threads, the calling thread included; 0 means every hardware thread. Never more than the number
-  /// of poses. The results do not depend on it.
+  /// Worker threads, the calling thread included; 0 means every hardware thread the process may run on.
+  /// Never more than the number of poses, nor than TBB runs at once (the hardware threads, unless the program
+  /// raised it with a tbb::global_control). The batch runs in a oneTBB task arena of this many slots, served
+  /// by TBB's shared worker pool, started once per process. The results do not depend on it.
   int threads = 0;
   /// Poses handed to a thread at a time. Small chunks balance the load (query cost varies a lot with the
   /// distance); 0 picks one from the batch size and thread count.
@@ -29,8 +31,8 @@ struct BatchOptions {
 ///
 /// Every pose is validated before any work starts; a bad one throws cfl::Error naming its index, e.g.
 /// "X_WB[17]: ...", and leaves `results` untouched. `results` must hold `count` elements and may not alias
-/// the poses. The models are only read, so other threads may query them meanwhile. Memory: one thread stack
-/// per worker; no allocation per query beyond computeDistance's own.
+/// the poses. The models are only read, so other threads may query them meanwhile. Memory: TBB's worker
+/// threads, kept for later batches; no allocation per query beyond computeDistance's own.
 void computeDistances(const CflModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
                       const Eigen::Isometry3d* X_WB, std::size_t count, DistanceResult* results,
                       const BatchOptions& options = {});
@@ -45,7 +47,8 @@ std::vector<DistanceResult> computeDistances(const CflModel& a, const Eigen::Iso
                                              const std::vector<Eigen::Isometry3d>& X_WB,
                                              const BatchOptions& options = {});
 
-/// The thread count a batch of `count` poses would use with `requested` threads (0 = all hardware threads).
+/// The thread count a batch of `count` poses would use with `requested` threads (0 = all hardware threads),
+/// after the caps of BatchOptions::threads.
 int batchThreadCount(int requested, std::size_t count);
 
 }  // namespace cfl

@@ -143,8 +143,12 @@ cfl::DistanceOptions distanceOptions(double rel_err, double abs_err, double uppe
       throwTypeError("hint must be None or a pair (triangle of a, triangle of b)");
     }
     if (pair.size() != 2) throwValueError("hint must be a pair (triangle of a, triangle of b), got " + std::to_string(pair.size()) + " items");
-    options.hint_triangle_a = pair[0].cast<int>();
-    options.hint_triangle_b = pair[1].cast<int>();
+    try {
+      options.hint_triangle_a = pair[0].cast<int>();
+      options.hint_triangle_b = pair[1].cast<int>();
+    } catch (const py::cast_error&) {
+      throwTypeError("hint must be a pair of triangle ids (ints)");
+    }
   }
   return options;
 }

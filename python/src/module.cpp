@@ -359,6 +359,10 @@ Conventions
 PYBIND11_MODULE(_cfl, m) {
   using namespace cfl_python;
   m.doc() = kModuleDoc;
+  // pybind11's generated signatures would show every flexible argument as "handle"; each docstring starts
+  // with the signature in the stub's (cfl/__init__.pyi) terms instead.
+  py::options options;
+  options.disable_function_signatures();
   m.attr("__version__") = CFL_VERSION;
 
   py::register_exception_translator([](std::exception_ptr pointer) {
@@ -382,7 +386,8 @@ Immutable. Pickles.
              py::gil_scoped_release release;
              return std::make_shared<cfl::MeshModel>(cfl::makeMeshModel(std::move(triangles)));
            }),
-           "vertices"_a, "faces"_a = py::none(), R"doc(
+           "vertices"_a, "faces"_a = py::none(), R"doc(Mesh(vertices: ArrayLike | MeshLike, faces: ArrayLike | None = None)
+
 Mesh(vertices, faces) or Mesh(obj)
 
 vertices: (n, 3) array of numbers, the vertex coordinates in the mesh's own frame and unit.
@@ -396,7 +401,8 @@ index out of range (naming the face), a non-finite coordinate or no face at all.
         cfl::TriangleMesh triangles = readMesh(path);
         py::gil_scoped_release release;
         return std::make_shared<cfl::MeshModel>(cfl::makeMeshModel(std::move(triangles)));
-      }, "path"_a, R"doc(
+      }, "path"_a, R"doc(from_file(path: str | bytes | os.PathLike) -> Mesh
+
 Reads a mesh file: OBJ and ASCII STL natively in double precision, binary STL, PLY, OFF, glTF, Collada and
 the other formats assimp reads (as 32-bit floats). All meshes of the file become one triangle soup in the
 file's frame and unit; polygons are triangulated; triangle i is the i-th triangle of the file.
@@ -437,9 +443,9 @@ distinct_lists, memory_bytes, build_seconds (also together as the dict `statisti
             }),
             "vertices"_a, "faces"_a = py::none(), py::kw_only(), "resolution"_a = build_defaults.resolution,
             "padding"_a = build_defaults.padding, "topology_culling"_a = build_defaults.topology_culling,
-            "threads"_a = build_defaults.threads, "progress"_a = py::none(), R"doc(
-Model(vertices, faces, *, resolution=0, padding=3.0, topology_culling=True, threads=0, progress=None)
-Model(obj, *, ...)
+            "threads"_a = build_defaults.threads, "progress"_a = py::none(), R"doc(Model(vertices: ArrayLike | MeshLike, faces: ArrayLike | None = None, *, resolution: int = 0, padding: float = 3.0, topology_culling: bool = True, threads: int = 0, progress: None | bool | Callable[[float], Any] = None)
+
+Model(vertices, faces, *, ...) or Model(obj, *, ...)
 
 Builds the voxel lists of a mesh.
 
@@ -464,7 +470,8 @@ too large for memory.
         return buildModel(readMesh(path), resolution, padding, topology_culling, threads, progress);
       }, "path"_a, py::kw_only(), "resolution"_a = build_defaults.resolution, "padding"_a = build_defaults.padding,
       "topology_culling"_a = build_defaults.topology_culling, "threads"_a = build_defaults.threads,
-      "progress"_a = py::none(), R"doc(
+      "progress"_a = py::none(), R"doc(from_file(path: str | bytes | os.PathLike, *, resolution: int = 0, padding: float = 3.0, topology_culling: bool = True, threads: int = 0, progress: None | bool | Callable[[float], Any] = None) -> Model
+
 Reads a mesh file (see Mesh.from_file for the formats) and builds its Model (see Model() for the options).
 Raises OSError for a file that cannot be read or parsed (FileNotFoundError when missing).
 )doc");
@@ -474,7 +481,8 @@ Raises OSError for a file that cannot be read or parsed (FileNotFoundError when 
           py::gil_scoped_release release;
           return std::make_shared<cfl::CflModel>(cfl::loadCflModel(path));
         });
-      }, "path"_a, R"doc(
+      }, "path"_a, R"doc(load(path: str | bytes | os.PathLike) -> Model
+
 Loads a model written by save(). The file is checked (checksums, every count and index) before use; a
 loaded model answers every query bit-identically to the saved one.
 Raises OSError (FileNotFoundError when missing) naming the file and what is wrong with it.
@@ -485,7 +493,8 @@ Raises OSError (FileNotFoundError when missing) naming the file and what is wron
           py::gil_scoped_release release;
           cfl::saveCflModel(self, path);
         });
-      }, "path"_a, R"doc(
+      }, "path"_a, R"doc(save(self, path: str | bytes | os.PathLike) -> None
+
 Writes the model to path (a versioned, checksummed little-endian .cfl file, replacing any file there
 atomically). Raises OSError when it cannot be written.
 )doc");
@@ -611,8 +620,7 @@ list of up to max_contacts Contact objects (intersecting triangle pairs).
   // --- Queries ---------------------------------------------------------------------------------------------
   const double no_bound = std::numeric_limits<double>::infinity();
   m.def("distance", &distance, "a"_a, "pose_a"_a, "b"_a, "pose_b"_a, py::kw_only(), "rel_err"_a = 0.0,
-        "abs_err"_a = 0.0, "upper_bound"_a = no_bound, "mode"_a = "hierarchical", "hint"_a = py::none(), R"doc(
-distance(a, pose_a, b, pose_b, *, rel_err=0, abs_err=0, upper_bound=inf, mode='hierarchical', hint=None)
+        "abs_err"_a = 0.0, "upper_bound"_a = no_bound, "mode"_a = "hierarchical", "hint"_a = py::none(), R"doc(distance(a: Model, pose_a: ArrayLike | None, b: Model | Mesh, pose_b: ArrayLike | None, *, rel_err: float = 0.0, abs_err: float = 0.0, upper_bound: float = inf, mode: str = 'hierarchical', hint: tuple[int, int] | None = None) -> DistanceResult
 
 The exact minimum distance between Model a placed at pose_a and Model or Mesh b placed at pose_b.
 
@@ -638,9 +646,7 @@ transform or a bad option.
 
   m.def("distances", &distances, "a"_a, "pose_a"_a, "b"_a, "poses_b"_a, py::kw_only(), "rel_err"_a = 0.0,
         "abs_err"_a = 0.0, "upper_bound"_a = no_bound, "mode"_a = "hierarchical", "hint"_a = py::none(),
-        "threads"_a = 0, "chunk_size"_a = 0, R"doc(
-distances(a, pose_a, b, poses_b, *, rel_err=0, abs_err=0, upper_bound=inf, mode='hierarchical', hint=None,
-          threads=0, chunk_size=0)
+        "threads"_a = 0, "chunk_size"_a = 0, R"doc(distances(a: Model, pose_a: ArrayLike | None, b: Model | Mesh, poses_b: ArrayLike, *, rel_err: float = 0.0, abs_err: float = 0.0, upper_bound: float = inf, mode: str = 'hierarchical', hint: tuple[int, int] | None = None, threads: int = 0, chunk_size: int = 0) -> DistanceBatch
 
 distance() for N poses of b at once (a sampling planner's shape of work: one obstacle a, many placements
 of b), spread over `threads` threads (0 = every hardware thread) with the GIL released.
@@ -655,8 +661,7 @@ that pose bit for bit, whatever the thread count. Every pose is checked before a
 raises ValueError naming it (poses_b[17]).
 )doc");
 
-  m.def("collide", &collide, "a"_a, "pose_a"_a, "b"_a, "pose_b"_a, py::kw_only(), "max_contacts"_a = 1, R"doc(
-collide(a, pose_a, b, pose_b, *, max_contacts=1)
+  m.def("collide", &collide, "a"_a, "pose_a"_a, "b"_a, "pose_b"_a, py::kw_only(), "max_contacts"_a = 1, R"doc(collide(a: Model | Mesh, pose_a: ArrayLike | None, b: Model | Mesh, pose_b: ArrayLike | None, *, max_contacts: int = 1) -> CollisionResult
 
 Whether a at pose_a and b at pose_b share a point (touching counts), through both meshes' hierarchies.
 a, b: cfl.Model or cfl.Mesh; poses as for distance().

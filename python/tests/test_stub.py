@@ -37,14 +37,35 @@ def test_stub_classes_list_the_real_members():
             assert stubbed == real - {"__init__"} - {"__getstate__", "__setstate__"}, node.name
 
 
-def test_stub_functions_take_the_documented_keywords():
-    # pybind11 puts the signature on the first docstring line: compare argument names with the stub's.
+def stubbed_callables():
+    """(name, stub FunctionDef, runtime object) for every function, constructor and method of the stub."""
     for node in stub_tree().body:
         if isinstance(node, ast.FunctionDef) and not node.name.startswith("_"):
-            args = [a.arg for a in node.args.args + node.args.kwonlyargs]
-            first_line = getattr(cfl, node.name).__doc__.splitlines()[0]
-            for name in args:
-                assert f"{name}: " in first_line, (node.name, name)
+            yield node.name, node, getattr(cfl, node.name)
+        elif isinstance(node, ast.ClassDef) and not node.name.startswith("_"):
+            for item in node.body:
+                is_property = any(getattr(d, "id", None) == "property" for d in item.decorator_list) \
+                    if isinstance(item, ast.FunctionDef) else True
+                if not is_property and (item.name == "__init__" or not item.name.startswith("_")):
+                    yield f"{node.name}.{item.name}", item, getattr(getattr(cfl, node.name), item.name)
+
+
+def test_stub_signatures_match_the_docstring_signatures():
+    # Each docstring starts with the signature (pybind11's own would say "handle" for flexible arguments):
+    # every argument of the stub appears there with a type, keyword-only ones after the "*".
+    checked = 0
+    for name, node, runtime in stubbed_callables():
+        first_line = runtime.__doc__.lstrip().splitlines()[0]
+        if name.endswith("__init__"):
+            first_line = first_line.split("\n")[0]
+        head, _, keyword_part = first_line.partition("*,")
+        for arg in node.args.args:
+            if arg.arg != "self" or "(self" in first_line:
+                assert f"{arg.arg}: " in head or (arg.arg == "self" and "(self" in head), (name, arg.arg, first_line)
+        for arg in node.args.kwonlyargs:
+            assert f"{arg.arg}: " in keyword_part, (name, arg.arg, first_line)
+        checked += 1
+    assert checked >= 9
 
 
 def test_help_explains_frames_and_units():

@@ -127,6 +127,11 @@ def main():
 
     print(f"mesh {os.path.basename(args.mesh)}: {model.triangle_count} triangles, resolution {model.resolution}; "
           f"{args.rounds} rounds, seed {args.seed}")
+    diag = float(np.linalg.norm(hi - lo))
+    apart = batch.distance[batch.distance > 0]
+    print(f"poses: {np.mean(batch.distance == 0):.0%} overlapping" + (
+        f"; the others apart by a median {np.median(apart) / diag:.3f} and at most {apart.max() / diag:.3f} diagonals"
+        if apart.size else ""))
     print(f"single call ({single} poses, median of {args.blocks} blocks of {args.repeats} calls per pose):")
     print(f"  C++ computeDistance  median {np.median(cpp_per_pose) / 1e3:8.3f} us per call")
     print(f"  Python cfl.distance  median {np.median(py_per_pose) / 1e3:8.3f} us per call")

@@ -280,15 +280,14 @@ CollisionResult collide(py::handle a, py::handle pose_a, py::handle b, py::handl
 // Files
 
 cfl::TriangleMesh readMesh(py::handle path_object) {
-#ifdef CFL_PYTHON_HAVE_IO
   const std::string path = pathFromPython(path_object);
+#ifdef CFL_PYTHON_HAVE_IO
   return withFileErrors(path, true, [&] {
     py::gil_scoped_release release;
     return cfl::loadMesh(path);
   });
 #else
-  (void)path_object;
-  PyErr_SetString(PyExc_NotImplementedError, "this cfl module was built without mesh files (CFL_BUILD_IO=OFF)");
+  PyErr_SetString(PyExc_NotImplementedError, (path + ": this cfl module was built without mesh files (CFL_BUILD_IO=OFF)").c_str());
   throw py::error_already_set();
 #endif
 }
@@ -364,6 +363,13 @@ PYBIND11_MODULE(_cfl, m) {
   py::options options;
   options.disable_function_signatures();
   m.attr("__version__") = CFL_VERSION;
+  // Whether Model.from_file and Mesh.from_file can read meshes (cfl::cfl_io was built); the tests skip them
+  // when not.
+#ifdef CFL_PYTHON_HAVE_IO
+  m.attr("_have_mesh_files") = true;
+#else
+  m.attr("_have_mesh_files") = false;
+#endif
 
   py::register_exception_translator([](std::exception_ptr pointer) {
     try {

@@ -8,6 +8,9 @@ import pytest
 import cfl
 import reference
 
+# Model.from_file and Mesh.from_file need the module built with cfl::cfl_io (CFL_BUILD_IO, on by default).
+needs_mesh_files = pytest.mark.skipif(not cfl._cfl._have_mesh_files, reason="built without CFL_BUILD_IO")
+
 DATA_DIR = os.environ.get("CFL_DATA_DIR", os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "data"))
 
 

@@ -56,7 +56,12 @@ def _barycentric_inside(x, a, b, c):
     d00, d01, d11 = _dot(v0, v0), _dot(v0, v1), _dot(v1, v1)
     d20, d21 = _dot(v2, v0), _dot(v2, v1)
     denominator = d00 * d11 - d01 * d01
-    ok = denominator > 0
+    # A triangle whose corners are collinear up to rounding (sine of its angle below 1e-10) counts as
+    # degenerate: its rounded normal points anywhere, and its edges, which the callers also measure, are
+    # within 1e-10 of its size from every point of it. The test takes the cross product itself: the
+    # denominator above equals its squared length but cancels to a rounding error 1e16 times larger.
+    normal = np.cross(v0, v1)
+    ok = _dot(normal, normal) > 1e-20 * d00 * d11
     safe = np.where(ok, denominator, 1.0)
     v = (d11 * d20 - d01 * d21) / safe
     w = (d00 * d21 - d01 * d20) / safe

@@ -9,7 +9,10 @@ import pytest
 
 import cfl
 import reference
-from conftest import MESHES
+from conftest import MESHES, needs_mesh_files
+
+# Both scripts read their meshes from files.
+pytestmark = needs_mesh_files
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SWEEP = os.path.join(HERE, "..", "examples", "sweep.py")

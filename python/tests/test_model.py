@@ -10,7 +10,7 @@ import pytest
 
 import cfl
 import reference
-from conftest import DATA_DIR, MESHES
+from conftest import DATA_DIR, MESHES, needs_mesh_files
 
 
 def answers(model, other, seed=12, count=10):
@@ -98,6 +98,7 @@ def test_pickle_round_trips_models_and_meshes(models):
     assert answers(model, mesh_clone) == answers(model, mesh)
 
 
+@needs_mesh_files
 def test_from_file_reads_the_written_obj_exactly(tmp_path):
     v, f = MESHES["patch"]
     path = tmp_path / "patch.obj"
@@ -110,6 +111,7 @@ def test_from_file_reads_the_written_obj_exactly(tmp_path):
     assert model.resolution == 10
 
 
+@needs_mesh_files
 def test_bundled_bunny_loads():
     mesh = cfl.Mesh.from_file(os.path.join(DATA_DIR, "bunny.obj"))
     assert mesh.triangle_count == 3674 and mesh.faces.max() < mesh.vertex_count

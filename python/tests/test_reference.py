@@ -44,6 +44,20 @@ def test_degenerate_triangles_measure_as_segments_and_points():
     assert td(tri, point) == pytest.approx(2.0, abs=1e-15)
 
 
+def test_rounded_collinear_triangle_is_measured_as_its_segment():
+    # Rotating a collinear triangle leaves its cross product at rounding level rather than 0; the reference
+    # once read that as a plane and reported a crossing far from the triangle.
+    rng = np.random.default_rng(9)
+    line = np.array([[0.0, 0.0, 0.0], [0.5, 0.5, 0.5], [1.0, 1.0, 1.0]])
+    for _ in range(200):
+        R = reference.random_rotation(rng)
+        B = line @ R.T + rng.normal(size=3)
+        A = rng.normal(size=(3, 3)) * 0.3 + rng.normal(scale=2.0, size=3)
+        t = np.linspace(0, 1, 20001)[:, None]
+        sampled = reference.point_triangle_distance(B[0] + t * (B[2] - B[0]), *A).min()
+        assert td(A, B) == pytest.approx(sampled, abs=1e-6)
+
+
 def sample(T, n=40):
     u, v = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
     keep = u + v <= 1

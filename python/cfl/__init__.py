@@ -10,8 +10,8 @@ Build a Model of a mesh once (or load a saved one), then ask for distances at an
     >>> r.distance, r.point_a, r.point_b, r.triangle_a, r.triangle_b
 
 Poses are 4x4 rigid transforms "world from model" (X_WA maps the model's vertex coordinates to world
-coordinates); lengths are in the meshes' own unit; returned points are in the world frame. See
-help(cfl.distance) and help(cfl._cfl) for the full conventions.
+coordinates); lengths are in the meshes' own unit; returned points are in the world frame. In full,
+from the extension module cfl._cfl:
 """
 
 from ._cfl import (

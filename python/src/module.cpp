@@ -340,8 +340,8 @@ Conventions
   X_WA, "world from A": a point p_A of the mesh is at X_WA @ [p_A, 1] in the world frame W. Its upper-left
   3x3 block must be a rotation (orthonormal, det +1, to 1e-6) and its last row exactly [0, 0, 0, 1]; no
   scale or shear. None stands for the identity.
-* Results are in the world frame: point_a and point_b are world coordinates; triangle ids index the rows
-  of the faces array the model was built from.
+* Results are in the world frame: point_a and point_b are world coordinates; triangle ids are row indices
+  into the models' faces arrays (model.faces: the faces it was built from, or read from its file).
 * Triangles are two-sided and may form open, non-manifold or self-intersecting meshes; distances are
   unsigned (>= 0) and 0 when the meshes touch or intersect, in which case point_a == point_b is a point
   of the intersection.

@@ -10,12 +10,7 @@
 // the batch's N distances as float64 to DISTANCES_OUT, so the benchmark can check both sides answered the
 // same. Wall time (steady_clock), as the Python side measures.
 
-#include "cfl/batch_query.h"
-#include "cfl/cfl_file.h"
-#include "cfl/cfl_query.h"
-
 #include <Eigen/Geometry>
-
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -24,6 +19,10 @@
 #include <iostream>
 #include <string>
 #include <vector>
+
+#include "cfl/batch_query.h"
+#include "cfl/cfl_file.h"
+#include "cfl/cfl_query.h"
 
 namespace {
 
@@ -88,7 +87,8 @@ int main(int argc, char** argv) {
     const double batch_seconds = std::chrono::duration<double>(Clock::now() - start).count();
 
     std::ofstream out(argv[8], std::ios::binary);
-    for (const cfl::DistanceResult& result : results) out.write(reinterpret_cast<const char*>(&result.distance), sizeof(double));
+    for (const cfl::DistanceResult& result : results)
+      out.write(reinterpret_cast<const char*>(&result.distance), sizeof(double));
 
     std::printf("{\"single_ns\": [");
     for (std::size_t i = 0; i < single_ns.size(); ++i) std::printf("%s%.1f", i ? ", " : "", single_ns[i]);

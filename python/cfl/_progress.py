@@ -26,7 +26,8 @@ class ProgressBar:
         self.last_draw = now
         filled = int(round(self.width * min(max(fraction, 0.0), 1.0)))
         bar = "#" * filled + "-" * (self.width - filled)
-        self.stream.write(f"{chr(13) if self.interactive else ''}{self.label} [{bar}] {100 * fraction:5.1f}% {now - self.start:6.1f} s")
+        start_of_line = "\r" if self.interactive else ""
+        self.stream.write(f"{start_of_line}{self.label} [{bar}] {100 * fraction:5.1f}% {now - self.start:6.1f} s")
         if done:
             self.stream.write("\n")
         self.stream.flush()

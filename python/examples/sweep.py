@@ -52,7 +52,8 @@ def main():
               f"  ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f})")
     touching = np.flatnonzero(result.distance == 0)
     if touching.size:
-        print(f"in contact at {touching.size} of {args.steps} steps, between x = {along[touching[0]]:.4f} and {along[touching[-1]]:.4f}")
+        print(f"in contact at {touching.size} of {args.steps} steps, "
+              f"between x = {along[touching[0]]:.4f} and {along[touching[-1]]:.4f}")
     else:
         closest = int(np.argmin(result.distance))
         print(f"never in contact; closest at x = {along[closest]:.4f}: {result.distance[closest]:.6f}")

@@ -1,12 +1,12 @@
 #include "conversions.h"
 
-#include "cfl/cfl_query.h"
-
 #include <climits>
 #include <cstdint>
 #include <cstring>
 #include <sstream>
 #include <type_traits>
+
+#include "cfl/cfl_query.h"
 
 namespace cfl_python {
 
@@ -41,9 +41,9 @@ py::array numericArray(py::handle object, const char* name, const char* kinds, c
   const char kind = array.dtype().kind();
   if (std::strchr(kinds, kind) == nullptr) {
     throwTypeError(std::string(name) + " must be an array of " + expected + ", got " +
-                   (py::isinstance<py::array>(object) ? "an array of dtype " + std::string(py::str(array.dtype()))
-                                                      : "a " + typeName(object) + " holding dtype " +
-                                                            std::string(py::str(array.dtype()))));
+                   (py::isinstance<py::array>(object)
+                        ? "an array of dtype " + std::string(py::str(array.dtype()))
+                        : "a " + typeName(object) + " holding dtype " + std::string(py::str(array.dtype()))));
   }
   return array;
 }
@@ -74,8 +74,8 @@ void copyFaces(const py::array& faces, std::int64_t vertex_count, cfl::TriangleM
 Eigen::Isometry3d checkedPose(const Eigen::Matrix4d& m, const std::string& name) {
   if (!(m(3, 0) == 0 && m(3, 1) == 0 && m(3, 2) == 0 && m(3, 3) == 1)) {
     std::ostringstream message;
-    message << name << " must be a rigid transform, whose last row is [0, 0, 0, 1]; got [" << m(3, 0) << ", "
-            << m(3, 1) << ", " << m(3, 2) << ", " << m(3, 3) << "]";
+    message << name << " must be a rigid transform, whose last row is [0, 0, 0, 1]; got [" << m(3, 0) << ", " << m(3, 1)
+            << ", " << m(3, 2) << ", " << m(3, 3) << "]";
     throwValueError(message.str());
   }
   Eigen::Isometry3d X;
@@ -91,8 +91,10 @@ cfl::TriangleMesh meshFromPython(py::handle vertices, py::handle faces) {
   py::object face_source = py::reinterpret_borrow<py::object>(faces);
   if (faces.is_none()) {
     if (!py::hasattr(vertices, "vertices") || !py::hasattr(vertices, "faces")) {
-      throwTypeError("faces is missing: pass a (n, 3) vertex array and a (m, 3) face array, or one object with "
-                     ".vertices and .faces (such as a trimesh.Trimesh); got a " + typeName(vertices));
+      throwTypeError(
+          "faces is missing: pass a (n, 3) vertex array and a (m, 3) face array, or one object with "
+          ".vertices and .faces (such as a trimesh.Trimesh); got a " +
+          typeName(vertices));
     }
     vertex_source = vertices.attr("vertices");
     face_source = vertices.attr("faces");
@@ -106,7 +108,8 @@ cfl::TriangleMesh meshFromPython(py::handle vertices, py::handle faces) {
   if (vertex_array.shape(0) > INT_MAX) throwValueError("vertices: more than 2^31 - 1 vertices");
   const auto vertex_data = py::array_t<double, py::array::c_style | py::array::forcecast>(vertex_array);
   mesh.vertices.resize(static_cast<std::size_t>(vertex_data.shape(0)));
-  if (!mesh.vertices.empty()) std::memcpy(mesh.vertices[0].data(), vertex_data.data(), 3 * sizeof(double) * mesh.vertices.size());
+  if (!mesh.vertices.empty())
+    std::memcpy(mesh.vertices[0].data(), vertex_data.data(), 3 * sizeof(double) * mesh.vertices.size());
 
   const py::array face_array = numericArray(face_source, "faces", "iu", "integers (vertex indices)");
   if (face_array.ndim() != 2 || face_array.shape(1) != 3) {

@@ -6,14 +6,14 @@
 // of the wrong class) raises TypeError; the right kind with a wrong shape or value raises ValueError; the
 // message names the argument, and the element (face, pose index) when it is one of many.
 
-#include "cfl/mesh.h"
-
-#include <Eigen/Geometry>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
+#include <Eigen/Geometry>
 #include <string>
 #include <vector>
+
+#include "cfl/mesh.h"
 
 namespace cfl_python {
 

@@ -5,8 +5,6 @@
 // Ownership: a Model or Mesh is a std::shared_ptr to the immutable C++ model, so queries may run with the
 // GIL released while other Python threads use the same objects; the arguments of a call keep them alive.
 
-#include "conversions.h"
-
 #include "cfl/batch_query.h"
 #include "cfl/cfl_file.h"
 #include "cfl/cfl_model.h"
@@ -14,6 +12,7 @@
 #include "cfl/error.h"
 #include "cfl/mesh.h"
 #include "cfl/mesh_model.h"
+#include "conversions.h"
 #ifdef CFL_PYTHON_HAVE_IO
 #include "cfl/mesh_io.h"
 #endif
@@ -93,8 +92,8 @@ py::object progressCallback(py::handle progress) {
   return py::reinterpret_borrow<py::object>(progress);
 }
 
-std::shared_ptr<cfl::CflModel> buildModel(cfl::TriangleMesh mesh, int resolution, double padding,
-                                          bool topology_culling, int threads, py::handle progress) {
+std::shared_ptr<cfl::CflModel> buildModel(cfl::TriangleMesh mesh, int resolution, double padding, bool topology_culling,
+                                          int threads, py::handle progress) {
   // The builder checks resolution and padding itself; threads only here, since it reads a negative count
   // as "all".
   if (threads < 0) throwValueError("threads must be >= 0 (0 = every hardware thread), got " + std::to_string(threads));
@@ -120,9 +119,13 @@ std::shared_ptr<cfl::CflModel> buildModel(cfl::TriangleMesh mesh, int resolution
 cfl::DistanceOptions distanceOptions(double rel_err, double abs_err, double upper_bound, const std::string& mode,
                                      py::handle hint) {
   cfl::DistanceOptions options;
-  if (!(rel_err >= 0 && std::isfinite(rel_err))) throwValueError("rel_err must be finite and >= 0, got " + py::repr(py::float_(rel_err)).cast<std::string>());
-  if (!(abs_err >= 0 && std::isfinite(abs_err))) throwValueError("abs_err must be finite and >= 0, got " + py::repr(py::float_(abs_err)).cast<std::string>());
-  if (!(upper_bound >= 0)) throwValueError("upper_bound must be >= 0 (inf for none), got " + py::repr(py::float_(upper_bound)).cast<std::string>());
+  if (!(rel_err >= 0 && std::isfinite(rel_err)))
+    throwValueError("rel_err must be finite and >= 0, got " + py::repr(py::float_(rel_err)).cast<std::string>());
+  if (!(abs_err >= 0 && std::isfinite(abs_err)))
+    throwValueError("abs_err must be finite and >= 0, got " + py::repr(py::float_(abs_err)).cast<std::string>());
+  if (!(upper_bound >= 0))
+    throwValueError("upper_bound must be >= 0 (inf for none), got " +
+                    py::repr(py::float_(upper_bound)).cast<std::string>());
   options.rel_err = rel_err;
   options.abs_err = abs_err;
   options.upper_bound = upper_bound;
@@ -142,7 +145,9 @@ cfl::DistanceOptions distanceOptions(double rel_err, double abs_err, double uppe
     } catch (py::error_already_set&) {
       throwTypeError("hint must be None or a pair (triangle of a, triangle of b)");
     }
-    if (pair.size() != 2) throwValueError("hint must be a pair (triangle of a, triangle of b), got " + std::to_string(pair.size()) + " items");
+    if (pair.size() != 2)
+      throwValueError("hint must be a pair (triangle of a, triangle of b), got " + std::to_string(pair.size()) +
+                      " items");
     try {
       options.hint_triangle_a = pair[0].cast<int>();
       options.hint_triangle_b = pair[1].cast<int>();
@@ -210,9 +215,8 @@ DistanceBatch batchArrays(std::unique_ptr<std::vector<cfl::DistanceResult>> resu
   const auto count = static_cast<py::ssize_t>(results->size());
   if (count == 0) {
     const std::vector<py::ssize_t> no_points{0, 3};
-    return {py::array_t<double>(0), py::array_t<double>(no_points), py::array_t<double>(no_points),
-            py::array_t<int>(0), py::array_t<int>(0),
-            py::array_t<std::int64_t>(0), py::array_t<std::int64_t>(0)};
+    return {py::array_t<double>(0), py::array_t<double>(no_points), py::array_t<double>(no_points), py::array_t<int>(0),
+            py::array_t<int>(0),    py::array_t<std::int64_t>(0),   py::array_t<std::int64_t>(0)};
   }
   const cfl::DistanceResult& first = results->front();
   py::capsule owner(results.get(), [](void* vector) { delete static_cast<std::vector<cfl::DistanceResult>*>(vector); });
@@ -220,7 +224,9 @@ DistanceBatch batchArrays(std::unique_ptr<std::vector<cfl::DistanceResult>> resu
   // Field offsets are taken from an element rather than offsetof, which Eigen members make non-portable.
   const py::ssize_t row = sizeof(cfl::DistanceResult);
   const auto column = static_cast<py::ssize_t>(sizeof(double));
-  auto view = [&](py::dtype dtype, const void* field) { return py::array(std::move(dtype), {count}, {row}, field, owner); };
+  auto view = [&](py::dtype dtype, const void* field) {
+    return py::array(std::move(dtype), {count}, {row}, field, owner);
+  };
   auto points = [&](const Eigen::Vector3d& field) {
     return py::array(py::dtype::of<double>(), {count, py::ssize_t{3}}, {row, column}, field.data(), owner);
   };
@@ -287,7 +293,8 @@ cfl::TriangleMesh readMesh(py::handle path_object) {
     return cfl::loadMesh(path);
   });
 #else
-  PyErr_SetString(PyExc_NotImplementedError, (path + ": this cfl module was built without mesh files (CFL_BUILD_IO=OFF)").c_str());
+  PyErr_SetString(PyExc_NotImplementedError,
+                  (path + ": this cfl module was built without mesh files (CFL_BUILD_IO=OFF)").c_str());
   throw py::error_already_set();
 #endif
 }
@@ -392,7 +399,8 @@ Immutable. Pickles.
              py::gil_scoped_release release;
              return std::make_shared<cfl::MeshModel>(cfl::makeMeshModel(std::move(triangles)));
            }),
-           "vertices"_a, "faces"_a = py::none(), R"doc(Mesh(vertices: ArrayLike | MeshLike, faces: ArrayLike | None = None)
+           "vertices"_a, "faces"_a = py::none(),
+           R"doc(Mesh(vertices: ArrayLike | MeshLike, faces: ArrayLike | None = None)
 
 Mesh(vertices, faces) or Mesh(obj)
 
@@ -403,35 +411,40 @@ obj: instead of the two arrays, any object with .vertices and .faces (trimesh.Tr
 Raises TypeError for arrays that do not hold numbers (faces: integers), ValueError for a wrong shape, an
 index out of range (naming the face), a non-finite coordinate or no face at all.
 )doc");
-  mesh.def_static("from_file", [](py::handle path) {
+  mesh.def_static(
+      "from_file",
+      [](py::handle path) {
         cfl::TriangleMesh triangles = readMesh(path);
         py::gil_scoped_release release;
         return std::make_shared<cfl::MeshModel>(cfl::makeMeshModel(std::move(triangles)));
-      }, "path"_a, R"doc(from_file(path: str | bytes | os.PathLike) -> Mesh
+      },
+      "path"_a, R"doc(from_file(path: str | bytes | os.PathLike) -> Mesh
 
 Reads a mesh file: OBJ and ASCII STL natively in double precision, binary STL, PLY, OFF, glTF, Collada and
 the other formats assimp reads (as 32-bit floats). All meshes of the file become one triangle soup in the
 file's frame and unit; polygons are triangulated; triangle i is the i-th triangle of the file.
 Raises OSError (FileNotFoundError when missing) with a message naming the file and, for OBJ/STL, the line.
 )doc");
-  mesh.def_property_readonly("vertices", [](py::object self) { return verticesView(self, self.cast<const cfl::MeshModel&>().mesh); },
-                             "(n, 3) float64 read-only view of the vertices (mesh frame).");
-  mesh.def_property_readonly("faces", [](py::object self) { return facesView(self, self.cast<const cfl::MeshModel&>().mesh); },
-                             "(m, 3) int32 read-only view of the triangles' vertex indices.");
-  mesh.def_property_readonly("bounds", [](const cfl::MeshModel& self) { return boundsArray(self.bounds); },
-                             "(2, 3) array: min and max corner of the bounding box of the used vertices (mesh frame).");
+  mesh.def_property_readonly(
+      "vertices", [](py::object self) { return verticesView(self, self.cast<const cfl::MeshModel&>().mesh); },
+      "(n, 3) float64 read-only view of the vertices (mesh frame).");
+  mesh.def_property_readonly(
+      "faces", [](py::object self) { return facesView(self, self.cast<const cfl::MeshModel&>().mesh); },
+      "(m, 3) int32 read-only view of the triangles' vertex indices.");
+  mesh.def_property_readonly(
+      "bounds", [](const cfl::MeshModel& self) { return boundsArray(self.bounds); },
+      "(2, 3) array: min and max corner of the bounding box of the used vertices (mesh frame).");
   mesh.def_property_readonly("triangle_count", [](const cfl::MeshModel& self) { return self.mesh.triangles.size(); });
   mesh.def_property_readonly("vertex_count", [](const cfl::MeshModel& self) { return self.mesh.vertices.size(); });
   mesh.def("__repr__", [](const cfl::MeshModel& self) {
     return "cfl.Mesh(" + std::to_string(self.mesh.triangles.size()) + " triangles, " +
            std::to_string(self.mesh.vertices.size()) + " vertices)";
   });
-  mesh.def(py::pickle(
-      [](py::object self) { return py::make_tuple(self.attr("vertices"), self.attr("faces")); },
-      [](py::tuple state) {
-        if (state.size() != 2) throwValueError("cfl.Mesh: bad pickle state");
-        return std::make_shared<cfl::MeshModel>(cfl::makeMeshModel(meshFromPython(state[0], state[1])));
-      }));
+  mesh.def(py::pickle([](py::object self) { return py::make_tuple(self.attr("vertices"), self.attr("faces")); },
+                      [](py::tuple state) {
+                        if (state.size() != 2) throwValueError("cfl.Mesh: bad pickle state");
+                        return std::make_shared<cfl::MeshModel>(cfl::makeMeshModel(meshFromPython(state[0], state[1])));
+                      }));
 
   // --- Model -----------------------------------------------------------------------------------------------
   py::class_<cfl::CflModel, std::shared_ptr<cfl::CflModel>> model(m, "Model", R"doc(
@@ -443,13 +456,15 @@ triangles (save() it to build once); queries then take microseconds. Immutable a
 The build statistics are attributes: resolution, voxel_count, average_list_length, longest_list,
 distinct_lists, memory_bytes, build_seconds (also together as the dict `statistics`).
 )doc");
-  model.def(py::init([](py::handle vertices, py::handle faces, int resolution, double padding, bool topology_culling,
-                        int threads, py::handle progress) {
-              return buildModel(meshFromPython(vertices, faces), resolution, padding, topology_culling, threads, progress);
-            }),
-            "vertices"_a, "faces"_a = py::none(), py::kw_only(), "resolution"_a = build_defaults.resolution,
-            "padding"_a = build_defaults.padding, "topology_culling"_a = build_defaults.topology_culling,
-            "threads"_a = build_defaults.threads, "progress"_a = py::none(), R"doc(Model(vertices: ArrayLike | MeshLike, faces: ArrayLike | None = None, *, resolution: int = 0, padding: float = 3.0, topology_culling: bool = True, threads: int = 0, progress: None | bool | Callable[[float], Any] = None)
+  model.def(
+      py::init([](py::handle vertices, py::handle faces, int resolution, double padding, bool topology_culling,
+                  int threads, py::handle progress) {
+        return buildModel(meshFromPython(vertices, faces), resolution, padding, topology_culling, threads, progress);
+      }),
+      "vertices"_a, "faces"_a = py::none(), py::kw_only(), "resolution"_a = build_defaults.resolution,
+      "padding"_a = build_defaults.padding, "topology_culling"_a = build_defaults.topology_culling,
+      "threads"_a = build_defaults.threads, "progress"_a = py::none(),
+      R"doc(Model(vertices: ArrayLike | MeshLike, faces: ArrayLike | None = None, *, resolution: int = 0, padding: float = 3.0, topology_culling: bool = True, threads: int = 0, progress: None | bool | Callable[[float], Any] = None)
 
 Model(vertices, faces, *, ...) or Model(obj, *, ...)
 
@@ -471,66 +486,88 @@ progress: None, True for a progress bar on stderr, or a callable called with the
 Raises TypeError / ValueError as Mesh() does, and ValueError for resolution < 0, padding < 1 or a grid
 too large for memory.
 )doc");
-  model.def_static("from_file", [](py::handle path, int resolution, double padding, bool topology_culling, int threads,
-                                   py::handle progress) {
+  model.def_static(
+      "from_file",
+      [](py::handle path, int resolution, double padding, bool topology_culling, int threads, py::handle progress) {
         return buildModel(readMesh(path), resolution, padding, topology_culling, threads, progress);
-      }, "path"_a, py::kw_only(), "resolution"_a = build_defaults.resolution, "padding"_a = build_defaults.padding,
+      },
+      "path"_a, py::kw_only(), "resolution"_a = build_defaults.resolution, "padding"_a = build_defaults.padding,
       "topology_culling"_a = build_defaults.topology_culling, "threads"_a = build_defaults.threads,
-      "progress"_a = py::none(), R"doc(from_file(path: str | bytes | os.PathLike, *, resolution: int = 0, padding: float = 3.0, topology_culling: bool = True, threads: int = 0, progress: None | bool | Callable[[float], Any] = None) -> Model
+      "progress"_a = py::none(),
+      R"doc(from_file(path: str | bytes | os.PathLike, *, resolution: int = 0, padding: float = 3.0, topology_culling: bool = True, threads: int = 0, progress: None | bool | Callable[[float], Any] = None) -> Model
 
 Reads a mesh file (see Mesh.from_file for the formats) and builds its Model (see Model() for the options).
 Raises OSError for a file that cannot be read or parsed (FileNotFoundError when missing).
 )doc");
-  model.def_static("load", [](py::handle path_object) {
+  model.def_static(
+      "load",
+      [](py::handle path_object) {
         const std::string path = pathFromPython(path_object);
         return withFileErrors(path, true, [&] {
           py::gil_scoped_release release;
           return std::make_shared<cfl::CflModel>(cfl::loadCflModel(path));
         });
-      }, "path"_a, R"doc(load(path: str | bytes | os.PathLike) -> Model
+      },
+      "path"_a, R"doc(load(path: str | bytes | os.PathLike) -> Model
 
 Loads a model written by save(). The file is checked (checksums, every count and index) before use; a
 loaded model answers every query bit-identically to the saved one.
 Raises OSError (FileNotFoundError when missing) naming the file and what is wrong with it.
 )doc");
-  model.def("save", [](const cfl::CflModel& self, py::handle path_object) {
+  model.def(
+      "save",
+      [](const cfl::CflModel& self, py::handle path_object) {
         const std::string path = pathFromPython(path_object);
         withFileErrors(path, false, [&] {
           py::gil_scoped_release release;
           cfl::saveCflModel(self, path);
         });
-      }, "path"_a, R"doc(save(self, path: str | bytes | os.PathLike) -> None
+      },
+      "path"_a, R"doc(save(self, path: str | bytes | os.PathLike) -> None
 
 Writes the model to path (a versioned, checksummed little-endian .cfl file, replacing any file there
 atomically). Raises OSError when it cannot be written.
 )doc");
-  model.def_property_readonly("vertices", [](py::object self) { return verticesView(self, self.cast<const cfl::CflModel&>().geometry.mesh); },
-                              "(n, 3) float64 read-only view of the vertices (model frame).");
-  model.def_property_readonly("faces", [](py::object self) { return facesView(self, self.cast<const cfl::CflModel&>().geometry.mesh); },
-                              "(m, 3) int32 read-only view of the triangles' vertex indices.");
-  model.def_property_readonly("bounds", [](const cfl::CflModel& self) { return boundsArray(self.geometry.bounds); },
-                              "(2, 3) array: min and max corner of the bounding box of the used vertices (model frame).");
-  model.def_property_readonly("triangle_count", [](const cfl::CflModel& self) { return self.geometry.mesh.triangles.size(); });
-  model.def_property_readonly("vertex_count", [](const cfl::CflModel& self) { return self.geometry.mesh.vertices.size(); });
-  model.def_property_readonly("resolution", [](const cfl::CflModel& self) { return self.statistics.resolution; },
-                              "Voxels along the grid's longest axis.");
+  model.def_property_readonly(
+      "vertices", [](py::object self) { return verticesView(self, self.cast<const cfl::CflModel&>().geometry.mesh); },
+      "(n, 3) float64 read-only view of the vertices (model frame).");
+  model.def_property_readonly(
+      "faces", [](py::object self) { return facesView(self, self.cast<const cfl::CflModel&>().geometry.mesh); },
+      "(m, 3) int32 read-only view of the triangles' vertex indices.");
+  model.def_property_readonly(
+      "bounds", [](const cfl::CflModel& self) { return boundsArray(self.geometry.bounds); },
+      "(2, 3) array: min and max corner of the bounding box of the used vertices (model frame).");
+  model.def_property_readonly("triangle_count",
+                              [](const cfl::CflModel& self) { return self.geometry.mesh.triangles.size(); });
+  model.def_property_readonly("vertex_count",
+                              [](const cfl::CflModel& self) { return self.geometry.mesh.vertices.size(); });
+  model.def_property_readonly(
+      "resolution", [](const cfl::CflModel& self) { return self.statistics.resolution; },
+      "Voxels along the grid's longest axis.");
   model.def_property_readonly("voxel_count", [](const cfl::CflModel& self) { return self.statistics.voxel_count; });
-  model.def_property_readonly("average_list_length", [](const cfl::CflModel& self) { return self.statistics.average_list_length; },
-                              "Mean number of triangles listed per voxel.");
+  model.def_property_readonly(
+      "average_list_length", [](const cfl::CflModel& self) { return self.statistics.average_list_length; },
+      "Mean number of triangles listed per voxel.");
   model.def_property_readonly("longest_list", [](const cfl::CflModel& self) { return self.statistics.longest_list; });
-  model.def_property_readonly("distinct_lists", [](const cfl::CflModel& self) { return self.statistics.distinct_lists; },
-                              "Lists stored (identical lists are stored once).");
-  model.def_property_readonly("memory_bytes", [](const cfl::CflModel& self) { return self.statistics.memory_bytes; },
-                              "Bytes of the model, mesh and hierarchy included.");
-  model.def_property_readonly("build_seconds", [](const cfl::CflModel& self) { return self.statistics.build_seconds; },
-                              "Wall time of the build (kept through save/load).");
-  model.def_property_readonly("statistics", [](const cfl::CflModel& self) {
+  model.def_property_readonly(
+      "distinct_lists", [](const cfl::CflModel& self) { return self.statistics.distinct_lists; },
+      "Lists stored (identical lists are stored once).");
+  model.def_property_readonly(
+      "memory_bytes", [](const cfl::CflModel& self) { return self.statistics.memory_bytes; },
+      "Bytes of the model, mesh and hierarchy included.");
+  model.def_property_readonly(
+      "build_seconds", [](const cfl::CflModel& self) { return self.statistics.build_seconds; },
+      "Wall time of the build (kept through save/load).");
+  model.def_property_readonly(
+      "statistics",
+      [](const cfl::CflModel& self) {
         const cfl::BuildStatistics& s = self.statistics;
         return py::dict("resolution"_a = s.resolution, "voxel_count"_a = s.voxel_count,
                         "average_list_length"_a = s.average_list_length, "longest_list"_a = s.longest_list,
                         "distinct_lists"_a = s.distinct_lists, "memory_bytes"_a = s.memory_bytes,
                         "build_seconds"_a = s.build_seconds);
-      }, "The build statistics as a dict.");
+      },
+      "The build statistics as a dict.");
   model.def("__repr__", [](const cfl::CflModel& self) {
     return "cfl.Model(" + std::to_string(self.geometry.mesh.triangles.size()) + " triangles, resolution " +
            std::to_string(self.statistics.resolution) + ", " + std::to_string(self.statistics.voxel_count) +
@@ -566,10 +603,11 @@ triangle_pairs, voxel_tests: work done by the query (exact triangle distances, b
       .def_readonly("triangle_b", &cfl::DistanceResult::triangle_b)
       .def_property_readonly("triangle_pairs", [](const cfl::DistanceResult& r) { return r.counters.triangle_pairs; })
       .def_property_readonly("voxel_tests", [](const cfl::DistanceResult& r) { return r.counters.voxel_tests; })
-      .def("__iter__", [](const cfl::DistanceResult& r) {
-        return py::iter(py::make_tuple(r.distance, vectorToArray(r.point_a), vectorToArray(r.point_b), r.triangle_a,
-                                       r.triangle_b));
-      })
+      .def("__iter__",
+           [](const cfl::DistanceResult& r) {
+             return py::iter(py::make_tuple(r.distance, vectorToArray(r.point_a), vectorToArray(r.point_b),
+                                            r.triangle_a, r.triangle_b));
+           })
       .def("__repr__", [](const cfl::DistanceResult& r) {
         std::ostringstream text;
         text.precision(17);
@@ -594,12 +632,18 @@ as long as any of them is referenced.
       .def_readonly("triangle_pairs", &DistanceBatch::triangle_pairs)
       .def_readonly("voxel_tests", &DistanceBatch::voxel_tests)
       .def("__len__", [](const DistanceBatch& batch) { return batch.distance.shape(0); })
-      .def("__iter__", [](const DistanceBatch& batch) {
-        return py::iter(py::make_tuple(batch.distance, batch.point_a, batch.point_b, batch.triangle_a, batch.triangle_b));
-      })
-      .def("__repr__", [](const DistanceBatch& batch) { return "DistanceBatch(" + std::to_string(batch.distance.shape(0)) + " poses)"; });
+      .def("__iter__",
+           [](const DistanceBatch& batch) {
+             return py::iter(
+                 py::make_tuple(batch.distance, batch.point_a, batch.point_b, batch.triangle_a, batch.triangle_b));
+           })
+      .def("__repr__", [](const DistanceBatch& batch) {
+        return "DistanceBatch(" + std::to_string(batch.distance.shape(0)) + " poses)";
+      });
 
-  py::class_<cfl::Contact>(m, "Contact", "One intersecting triangle pair of collide(): triangle_a, triangle_b and position, a world-frame point of both.")
+  py::class_<cfl::Contact>(
+      m, "Contact",
+      "One intersecting triangle pair of collide(): triangle_a, triangle_b and position, a world-frame point of both.")
       .def_readonly("triangle_a", &cfl::Contact::triangle_a)
       .def_readonly("triangle_b", &cfl::Contact::triangle_b)
       .def_property_readonly("position", [](const cfl::Contact& c) { return vectorToArray(c.position); })
@@ -625,8 +669,10 @@ list of up to max_contacts Contact objects (intersecting triangle pairs).
 
   // --- Queries ---------------------------------------------------------------------------------------------
   const double no_bound = std::numeric_limits<double>::infinity();
-  m.def("distance", &distance, "a"_a, "pose_a"_a, "b"_a, "pose_b"_a, py::kw_only(), "rel_err"_a = 0.0,
-        "abs_err"_a = 0.0, "upper_bound"_a = no_bound, "mode"_a = "hierarchical", "hint"_a = py::none(), R"doc(distance(a: Model, pose_a: ArrayLike | None, b: Model | Mesh, pose_b: ArrayLike | None, *, rel_err: float = 0.0, abs_err: float = 0.0, upper_bound: float = inf, mode: str = 'hierarchical', hint: tuple[int, int] | None = None) -> DistanceResult
+  m.def(
+      "distance", &distance, "a"_a, "pose_a"_a, "b"_a, "pose_b"_a, py::kw_only(), "rel_err"_a = 0.0, "abs_err"_a = 0.0,
+      "upper_bound"_a = no_bound, "mode"_a = "hierarchical", "hint"_a = py::none(),
+      R"doc(distance(a: Model, pose_a: ArrayLike | None, b: Model | Mesh, pose_b: ArrayLike | None, *, rel_err: float = 0.0, abs_err: float = 0.0, upper_bound: float = inf, mode: str = 'hierarchical', hint: tuple[int, int] | None = None) -> DistanceResult
 
 The exact minimum distance between Model a placed at pose_a and Model or Mesh b placed at pose_b.
 
@@ -650,9 +696,11 @@ Raises TypeError for arguments of the wrong type and ValueError for a pose that 
 transform or a bad option.
 )doc");
 
-  m.def("distances", &distances, "a"_a, "pose_a"_a, "b"_a, "poses_b"_a, py::kw_only(), "rel_err"_a = 0.0,
-        "abs_err"_a = 0.0, "upper_bound"_a = no_bound, "mode"_a = "hierarchical", "hint"_a = py::none(),
-        "threads"_a = 0, "chunk_size"_a = 0, R"doc(distances(a: Model, pose_a: ArrayLike | None, b: Model | Mesh, poses_b: ArrayLike, *, rel_err: float = 0.0, abs_err: float = 0.0, upper_bound: float = inf, mode: str = 'hierarchical', hint: tuple[int, int] | None = None, threads: int = 0, chunk_size: int = 0) -> DistanceBatch
+  m.def(
+      "distances", &distances, "a"_a, "pose_a"_a, "b"_a, "poses_b"_a, py::kw_only(), "rel_err"_a = 0.0,
+      "abs_err"_a = 0.0, "upper_bound"_a = no_bound, "mode"_a = "hierarchical", "hint"_a = py::none(), "threads"_a = 0,
+      "chunk_size"_a = 0,
+      R"doc(distances(a: Model, pose_a: ArrayLike | None, b: Model | Mesh, poses_b: ArrayLike, *, rel_err: float = 0.0, abs_err: float = 0.0, upper_bound: float = inf, mode: str = 'hierarchical', hint: tuple[int, int] | None = None, threads: int = 0, chunk_size: int = 0) -> DistanceBatch
 
 distance() for N poses of b at once (a sampling planner's shape of work: one obstacle a, many placements
 of b), spread over `threads` threads (0 = every hardware thread) with the GIL released.
@@ -667,7 +715,9 @@ that pose bit for bit, whatever the thread count. Every pose is checked before a
 raises ValueError naming it (poses_b[17]).
 )doc");
 
-  m.def("collide", &collide, "a"_a, "pose_a"_a, "b"_a, "pose_b"_a, py::kw_only(), "max_contacts"_a = 1, R"doc(collide(a: Model | Mesh, pose_a: ArrayLike | None, b: Model | Mesh, pose_b: ArrayLike | None, *, max_contacts: int = 1) -> CollisionResult
+  m.def(
+      "collide", &collide, "a"_a, "pose_a"_a, "b"_a, "pose_b"_a, py::kw_only(), "max_contacts"_a = 1,
+      R"doc(collide(a: Model | Mesh, pose_a: ArrayLike | None, b: Model | Mesh, pose_b: ArrayLike | None, *, max_contacts: int = 1) -> CollisionResult
 
 Whether a at pose_a and b at pose_b share a point (touching counts), through both meshes' hierarchies.
 a, b: cfl.Model or cfl.Mesh; poses as for distance().

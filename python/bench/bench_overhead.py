@@ -29,9 +29,9 @@ import numpy as np
 import cfl
 
 
-def random_poses(count, center, diagonal, rng):
+def random_poses(count, center, diagonal, reach, rng):
     """count poses X_WB of a mesh centered at `center`: uniformly random rotations about its center and
-    offsets up to 0.6 diagonals, from overlapping to clear of each other."""
+    offsets of up to `reach` diagonals in uniformly random directions."""
     q = rng.normal(size=(count, 4))
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     w, x, y, z = q.T
@@ -41,7 +41,7 @@ def random_poses(count, center, diagonal, rng):
     R[:, 2] = np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1)
     direction = rng.normal(size=(count, 3))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
-    offset = direction * (0.6 * diagonal * rng.random(count))[:, None]
+    offset = direction * (reach * diagonal * rng.random(count))[:, None]
     poses = np.zeros((count, 4, 4))
     poses[:, :3, :3] = R
     # p_W = R (p_B - c) + c + offset: rotation about the mesh's center, then the offset.
@@ -83,6 +83,8 @@ def main():
     parser.add_argument("--blocks", type=int, default=5, help="timed blocks per pose")
     parser.add_argument("--rounds", type=int, default=3, help="alternating C++ / Python rounds")
     parser.add_argument("--threads", type=int, default=0, help="batch threads (0 = all)")
+    parser.add_argument("--reach", type=float, default=0.6,
+                        help="largest offset between the two copies, in diagonals (0.6: mostly overlapping)")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--reference", default=default_reference(), help="the C++ timing program")
     args = parser.parse_args()
@@ -91,7 +93,8 @@ def main():
 
     model = cfl.Model.from_file(args.mesh, resolution=args.resolution)
     lo, hi = model.bounds
-    poses = random_poses(args.poses, 0.5 * (lo + hi), float(np.linalg.norm(hi - lo)), np.random.default_rng(args.seed))
+    poses = random_poses(args.poses, 0.5 * (lo + hi), float(np.linalg.norm(hi - lo)), args.reach,
+                         np.random.default_rng(args.seed))
     single = min(args.single, args.poses)
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -126,7 +129,7 @@ def main():
     cpp_batch_median, py_batch_median = statistics.median(cpp_batch), statistics.median(py_batch)
 
     print(f"mesh {os.path.basename(args.mesh)}: {model.triangle_count} triangles, resolution {model.resolution}; "
-          f"{args.rounds} rounds, seed {args.seed}")
+          f"{args.rounds} rounds, seed {args.seed}, reach {args.reach}")
     diag = float(np.linalg.norm(hi - lo))
     apart = batch.distance[batch.distance > 0]
     print(f"poses: {np.mean(batch.distance == 0):.0%} overlapping" + (

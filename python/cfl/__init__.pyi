@@ -1,0 +1,198 @@
+# Typing stub of the cfl package (the extension module cfl._cfl, re-exported by cfl/__init__.py).
+# Frames and units: poses are 4x4 rigid transforms "world from model" (X_WA); lengths are in the meshes'
+# own unit; returned points are in the world frame. See help(cfl) for the conventions.
+
+import os
+from typing import Any, Callable, Iterator, Optional, Protocol, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+_Path = Union[str, bytes, os.PathLike[str], os.PathLike[bytes]]
+# A 4x4 rigid transform (anything numpy.asarray turns into a (4, 4) array of numbers), or None for the identity.
+_Pose = Optional[npt.ArrayLike]
+_Progress = Union[None, bool, Callable[[float], Any]]
+
+class _MeshLike(Protocol):
+    @property
+    def vertices(self) -> npt.ArrayLike: ...
+    @property
+    def faces(self) -> npt.ArrayLike: ...
+
+class Mesh:
+    """A triangle mesh with its bounding volume hierarchy (no voxels): the second model of a query."""
+
+    def __init__(self, vertices: Union[npt.ArrayLike, _MeshLike], faces: Optional[npt.ArrayLike] = None) -> None:
+        """vertices (n, 3) numbers and faces (m, 3) vertex indices, or one object with .vertices and .faces."""
+    @staticmethod
+    def from_file(path: _Path) -> Mesh:
+        """Reads OBJ / STL (native, double precision) or any format assimp reads. Raises OSError."""
+    @property
+    def vertices(self) -> npt.NDArray[np.float64]:
+        """(n, 3) read-only view, mesh frame."""
+    @property
+    def faces(self) -> npt.NDArray[np.int32]:
+        """(m, 3) read-only view of vertex indices."""
+    @property
+    def bounds(self) -> npt.NDArray[np.float64]:
+        """(2, 3): min and max corner, mesh frame."""
+    @property
+    def triangle_count(self) -> int: ...
+    @property
+    def vertex_count(self) -> int: ...
+
+class Model:
+    """A triangle mesh with its discrete Voronoi regions (voxel lists): the first model of a query."""
+
+    def __init__(
+        self,
+        vertices: Union[npt.ArrayLike, _MeshLike],
+        faces: Optional[npt.ArrayLike] = None,
+        *,
+        resolution: int = 0,
+        padding: float = 3.0,
+        topology_culling: bool = True,
+        threads: int = 0,
+        progress: _Progress = None,
+    ) -> None:
+        """Builds the voxel lists. resolution 0 = automatic; threads 0 = all; progress True = a bar on stderr."""
+    @staticmethod
+    def from_file(
+        path: _Path,
+        *,
+        resolution: int = 0,
+        padding: float = 3.0,
+        topology_culling: bool = True,
+        threads: int = 0,
+        progress: _Progress = None,
+    ) -> Model:
+        """Reads a mesh file (see Mesh.from_file) and builds its model. Raises OSError for file problems."""
+    @staticmethod
+    def load(path: _Path) -> Model:
+        """Loads a .cfl file written by save(). Raises OSError (FileNotFoundError when missing)."""
+    def save(self, path: _Path) -> None:
+        """Writes a .cfl file atomically. Raises OSError."""
+    @property
+    def vertices(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def faces(self) -> npt.NDArray[np.int32]: ...
+    @property
+    def bounds(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def triangle_count(self) -> int: ...
+    @property
+    def vertex_count(self) -> int: ...
+    # Build statistics.
+    @property
+    def resolution(self) -> int: ...
+    @property
+    def voxel_count(self) -> int: ...
+    @property
+    def average_list_length(self) -> float: ...
+    @property
+    def longest_list(self) -> int: ...
+    @property
+    def distinct_lists(self) -> int: ...
+    @property
+    def memory_bytes(self) -> int: ...
+    @property
+    def build_seconds(self) -> float: ...
+    @property
+    def statistics(self) -> dict[str, Union[int, float]]: ...
+
+class DistanceResult:
+    """distance, point_a, point_b (world frame), triangle_a, triangle_b; unpacks in that order."""
+
+    @property
+    def distance(self) -> float: ...
+    @property
+    def point_a(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def point_b(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def triangle_a(self) -> int: ...
+    @property
+    def triangle_b(self) -> int: ...
+    @property
+    def triangle_pairs(self) -> int: ...
+    @property
+    def voxel_tests(self) -> int: ...
+    def __iter__(self) -> Iterator[Any]: ...
+
+class DistanceBatch:
+    """Arrays over N poses: distance (N,), point_a / point_b (N, 3), triangle_a / triangle_b (N,) int32."""
+
+    @property
+    def distance(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def point_a(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def point_b(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def triangle_a(self) -> npt.NDArray[np.int32]: ...
+    @property
+    def triangle_b(self) -> npt.NDArray[np.int32]: ...
+    @property
+    def triangle_pairs(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def voxel_tests(self) -> npt.NDArray[np.int64]: ...
+    def __len__(self) -> int: ...
+    def __iter__(self) -> Iterator[npt.NDArray[Any]]: ...
+
+class Contact:
+    @property
+    def triangle_a(self) -> int: ...
+    @property
+    def triangle_b(self) -> int: ...
+    @property
+    def position(self) -> npt.NDArray[np.float64]:
+        """A world-frame point of both triangles."""
+
+class CollisionResult:
+    @property
+    def colliding(self) -> bool: ...
+    @property
+    def contacts(self) -> list[Contact]: ...
+    def __bool__(self) -> bool: ...
+
+def distance(
+    a: Model,
+    pose_a: _Pose,
+    b: Union[Model, Mesh],
+    pose_b: _Pose,
+    *,
+    rel_err: float = 0.0,
+    abs_err: float = 0.0,
+    upper_bound: float = ...,
+    mode: str = "hierarchical",
+    hint: Optional[Tuple[int, int]] = None,
+) -> DistanceResult:
+    """Exact minimum distance between a at X_WA = pose_a and b at X_WB = pose_b (world-frame points)."""
+
+def distances(
+    a: Model,
+    pose_a: _Pose,
+    b: Union[Model, Mesh],
+    poses_b: npt.ArrayLike,
+    *,
+    rel_err: float = 0.0,
+    abs_err: float = 0.0,
+    upper_bound: float = ...,
+    mode: str = "hierarchical",
+    hint: Optional[Tuple[int, int]] = None,
+    threads: int = 0,
+    chunk_size: int = 0,
+) -> DistanceBatch:
+    """distance() for each of the (N, 4, 4) poses_b, on all cores with the GIL released."""
+
+def collide(
+    a: Union[Model, Mesh],
+    pose_a: _Pose,
+    b: Union[Model, Mesh],
+    pose_b: _Pose,
+    *,
+    max_contacts: int = 1,
+) -> CollisionResult:
+    """Whether a and b share a point, with up to max_contacts intersecting triangle pairs."""

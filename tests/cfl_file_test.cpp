@@ -857,24 +857,38 @@ TEST_F(CflFileStructure, LeavesReferencedTwiceOrNeverOrOutOfRangeAreRefused) {
 
 TEST_F(CflFileStructure, TreesDeeperThanTwentyFourLevelsAreRefused) {
   const CflModel& good = adaptiveModel();
-  const std::vector<std::size_t> leaves = nodesWhere(good.regions, true);
-  ASSERT_LT(leaves[0], std::size_t(good.regions.rootCount())) << "needs a root cell that is a leaf";
+  const RegionTree& tree = good.regions;
+  // The shallowest leaf, made into a chain down to depth 24, the most forEachLeafInBox's stack holds; and
+  // the lower corner of its cell (in root-cell units, found walking down from the roots), towards which
+  // the chain shrinks.
+  const std::vector<int> depths = nodeDepths(tree);
+  std::vector<Eigen::Vector3d> corners(tree.nodes.size());
+  for (std::int64_t r = 0; r < tree.rootCount(); ++r) {
+    corners[r] = Eigen::Vector3d(double(r % tree.root_dims[0]), double((r / tree.root_dims[0]) % tree.root_dims[1]),
+                                 double(r / (std::int64_t(tree.root_dims[0]) * tree.root_dims[1])));
+  }
+  std::size_t start = tree.nodes.size();
+  for (std::size_t n = 0; n < tree.nodes.size(); ++n) {
+    if (tree.nodes[n] & RegionTree::kLeafBit) {
+      if (start == tree.nodes.size() || depths[n] < depths[start]) start = n;
+      continue;
+    }
+    const double half = 0.5 / double(std::int64_t(1) << depths[n]);
+    for (int c = 0; c < 8; ++c) {
+      corners[tree.nodes[n] + c] = corners[n] + half * Eigen::Vector3d(c & 1, (c >> 1) & 1, c >> 2);
+    }
+  }
+  const int below = 24 - depths[start];
 
-  // 24 levels, the most forEachLeafInBox's stack holds: saved, loaded and queried, exactly.
-  const CflModel deepest = deepened(good, leaves[0], 24);
+  // 24 levels: saved, loaded and queried, exactly.
+  const CflModel deepest = deepened(good, start, below);
   const Bytes bytes = serializeCflModel(deepest);
   EXPECT_EQ(bytes, writeUnchecked(deepest));
   const CflModel loaded = deserializeCflModel(bytes.data(), bytes.size(), kName);
   EXPECT_EQ(loaded.regions.max_depth, 24);
   const MeshModel b = makeMeshModel(test::makeTorus(0.2, 0.05, 12, 6));
   test::Rng rng(17);
-  // B near the lower corner of that root cell, towards which the chain shrinks.
-  const RegionTree& tree = good.regions;
-  const std::int64_t root = static_cast<std::int64_t>(leaves[0]);
-  const Eigen::Vector3d deep_corner =
-      tree.origin + tree.root_size * Eigen::Vector3d(double(root % tree.root_dims[0]),
-                                                     double((root / tree.root_dims[0]) % tree.root_dims[1]),
-                                                     double(root / (std::int64_t(tree.root_dims[0]) * tree.root_dims[1])));
+  const Eigen::Vector3d deep_corner = tree.origin + tree.root_size * corners[start];
   const double diagonal = good.geometry.bounds.diagonal();
   std::int64_t shallow_cells = 0, deep_cells = 0;
   for (int i = 0; i < 10; ++i) {
@@ -894,7 +908,7 @@ TEST_F(CflFileStructure, TreesDeeperThanTwentyFourLevelsAreRefused) {
   EXPECT_GT(deep_cells, shallow_cells);
 
   // 25 levels: refused whether max_depth says so or not.
-  CflModel deeper = deepened(good, leaves[0], 25);
+  CflModel deeper = deepened(good, start, below + 1);
   expectModelRefused(deeper, "regions max_depth is 25, must be in [0, 24]");
   deeper.regions.max_depth = 24;
   expectModelRefused(deeper, "at depth 24 has children at depth 25, deeper than max_depth 24");

@@ -272,7 +272,7 @@ TEST_F(ToolCliTest, BuildSavesAModelThatInfoReadsBack) {
   // Standard error is not a terminal here: plain progress lines, no carriage returns.
   EXPECT_TRUE(contains(build.err, "100%") || contains(build.err, "done in")) << build.err;
   EXPECT_FALSE(contains(build.err, "\r")) << build.err;
-  for (const char* field : {"voxels:", "average CFL length:", "longest CFL:", "triangles:"}) {
+  for (const char* field : {"leaves:", "regions:", "average CFL length:", "longest CFL:", "triangles:"}) {
     const auto line = [&](const std::string& text) {
       const auto at = text.find(field);
       return at == std::string::npos ? std::string("missing") : text.substr(at, text.find('\n', at) - at);

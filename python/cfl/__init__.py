@@ -4,7 +4,7 @@ Build a Model of a mesh once (or load a saved one), then ask for distances at an
 
     >>> import numpy as np, cfl
     >>> a = cfl.Model.from_file("bunny.obj")             # or cfl.Model(vertices, faces)
-    >>> b = cfl.Mesh.from_file("bunny.obj")              # b needs no voxels
+    >>> b = cfl.Mesh.from_file("bunny.obj")              # b needs no regions
     >>> X_WB = np.eye(4); X_WB[0, 3] = 0.2               # b moved 0.2 units along world x
     >>> r = cfl.distance(a, np.eye(4), b, X_WB)
     >>> r.distance, r.point_a, r.point_b, r.triangle_a, r.triangle_b

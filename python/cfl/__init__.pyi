@@ -22,7 +22,7 @@ class _MeshLike(Protocol):
     def faces(self) -> npt.ArrayLike: ...
 
 class Mesh:
-    """A triangle mesh with its bounding volume hierarchy (no voxels): the second model of a query."""
+    """A triangle mesh with its bounding volume hierarchy (no Voronoi regions): the second model of a query."""
 
     def __init__(self, vertices: Union[npt.ArrayLike, _MeshLike], faces: Optional[npt.ArrayLike] = None) -> None:
         """vertices (n, 3) numbers and faces (m, 3) vertex indices, or one object with .vertices and .faces."""
@@ -44,7 +44,8 @@ class Mesh:
     def vertex_count(self) -> int: ...
 
 class Model:
-    """A triangle mesh with its discrete Voronoi regions (voxel lists): the first model of a query."""
+    """A triangle mesh with its discrete Voronoi regions (adaptive cells listing the closest triangles): the first
+    model of a query."""
 
     def __init__(
         self,
@@ -55,9 +56,14 @@ class Model:
         padding: float = 3.0,
         topology_culling: bool = True,
         threads: int = 0,
+        memory_limit: int = 0,
         progress: _Progress = None,
     ) -> None:
-        """Builds the voxel lists. resolution 0 = automatic; threads 0 = all; progress True = a bar on stderr."""
+        """Builds the regions. resolution 0 = adaptive cells, sized automatically; N > 0 = the paper's uniform grid
+        of N cells along the longest axis. padding: the box grows by (padding - 1) / 2 of its longest extent on
+        every side. memory_limit: bytes for the regions, 0 = min(half of RAM, 32 MiB + 2 KiB per triangle);
+        past it an adaptive build coarsens (sets coarsened). threads 0 = all; progress True = a bar on stderr.
+        Raises ValueError for resolution < 0, padding < 1, memory_limit < 0."""
     @staticmethod
     def from_file(
         path: _Path,
@@ -66,6 +72,7 @@ class Model:
         padding: float = 3.0,
         topology_culling: bool = True,
         threads: int = 0,
+        memory_limit: int = 0,
         progress: _Progress = None,
     ) -> Model:
         """Reads a mesh file (see Mesh.from_file) and builds its model. Raises OSError for file problems."""
@@ -86,11 +93,20 @@ class Model:
     def vertex_count(self) -> int: ...
     # Build statistics.
     @property
-    def resolution(self) -> int: ...
+    def resolution(self) -> int:
+        """Cells of the finest level along the longest axis of the regions."""
     @property
-    def voxel_count(self) -> int: ...
+    def voxel_count(self) -> int:
+        """Leaves (cells not split further), with or without a list: sum(leaves_per_depth)."""
     @property
-    def average_list_length(self) -> float: ...
+    def leaves_per_depth(self) -> list[int]:
+        """Leaves at each depth, the root cells' level first (one entry for a uniform grid)."""
+    @property
+    def leaves_without_list(self) -> int:
+        """Leaves that store no list; queries use the mesh's hierarchy there."""
+    @property
+    def average_list_length(self) -> float:
+        """Mean list length over the leaves that store one."""
     @property
     def longest_list(self) -> int: ...
     @property
@@ -98,9 +114,12 @@ class Model:
     @property
     def memory_bytes(self) -> int: ...
     @property
+    def coarsened(self) -> bool:
+        """Whether the build stopped refining at memory_limit (answers stay exact)."""
+    @property
     def build_seconds(self) -> float: ...
     @property
-    def statistics(self) -> dict[str, Union[int, float]]: ...
+    def statistics(self) -> dict[str, Union[int, float, bool, list[int]]]: ...
 
 class DistanceResult:
     """distance, point_a, point_b (world frame), triangle_a, triangle_b; unpacks in that order."""

@@ -28,7 +28,7 @@ def main():
     parser.add_argument("--plot", default="sweep.png", help="image file for the profile ('' for none)")
     args = parser.parse_args()
 
-    a = cfl.Model.from_file(args.mesh_a, progress=True)  # the voxel lists: built once, a second or two
+    a = cfl.Model.from_file(args.mesh_a, progress=True)  # the Voronoi regions: built once, a second or two
     b = cfl.Mesh.from_file(args.mesh_b)                   # the moving mesh needs none
     print(f"A: {os.path.basename(args.mesh_a)}, {a!r}")
     print(f"B: {os.path.basename(args.mesh_b)}, {b!r}")

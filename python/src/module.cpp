@@ -24,6 +24,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <limits>
 #include <memory>
@@ -93,15 +94,16 @@ py::object progressCallback(py::handle progress) {
 }
 
 std::shared_ptr<cfl::CflModel> buildModel(cfl::TriangleMesh mesh, int resolution, double padding, bool topology_culling,
-                                          int threads, py::handle progress) {
-  // The builder checks resolution and padding itself; threads only here, since it reads a negative count
-  // as "all".
+                                          int threads, std::int64_t memory_limit, py::handle progress) {
+  // The builder checks resolution, padding and memory_limit itself (its cfl::Error becomes ValueError);
+  // threads only here, since it reads a negative count as "all".
   if (threads < 0) throwValueError("threads must be >= 0 (0 = every hardware thread), got " + std::to_string(threads));
   cfl::BuildOptions options;
   options.resolution = resolution;
   options.padding = padding;
   options.topology_culling = topology_culling;
   options.threads = threads;
+  options.memory_limit = memory_limit;
   ProgressRelay relay{progressCallback(progress), std::nullopt};
   if (!relay.callback.is_none()) options.progress = [&relay](double fraction) { relay(fraction); };
   std::shared_ptr<cfl::CflModel> model;
@@ -160,13 +162,13 @@ cfl::DistanceOptions distanceOptions(double rel_err, double abs_err, double uppe
 
 const cfl::CflModel& modelArgument(py::handle object, const char* name) {
   if (!py::isinstance<cfl::CflModel>(object)) {
-    throwTypeError(std::string(name) + " must be a cfl.Model (the side whose voxel lists answer the query), got a " +
+    throwTypeError(std::string(name) + " must be a cfl.Model (the side whose Voronoi regions answer the query), got a " +
                    std::string(py::str(py::type::handle_of(object).attr("__name__"))));
   }
   return object.cast<const cfl::CflModel&>();
 }
 
-// The mesh of a Model or a Mesh, for the queries that need no voxel lists.
+// The mesh of a Model or a Mesh, for the queries that need no Voronoi regions.
 const cfl::MeshModel& meshArgument(py::handle object, const char* name) {
   if (py::isinstance<cfl::CflModel>(object)) return object.cast<const cfl::CflModel&>().geometry;
   if (py::isinstance<cfl::MeshModel>(object)) return object.cast<const cfl::MeshModel&>();
@@ -174,7 +176,7 @@ const cfl::MeshModel& meshArgument(py::handle object, const char* name) {
                  std::string(py::str(py::type::handle_of(object).attr("__name__"))));
 }
 
-// The query's two models as the C++ overloads take them: B with its voxel lists (a Model) or without (a Mesh).
+// The query's two models as the C++ overloads take them: B with its regions (a Model) or without (a Mesh).
 struct QueryModels {
   const cfl::CflModel* a = nullptr;
   const cfl::CflModel* b_model = nullptr;  // set when b is a Model
@@ -332,13 +334,21 @@ std::string megabytes(std::int64_t bytes) {
   return text.str();
 }
 
+// BuildStatistics::leaves_per_depth as a Python list of int (a fresh one each time: the model is immutable).
+py::list leavesPerDepth(const cfl::BuildStatistics& statistics) {
+  py::list counts;
+  for (std::int64_t count : statistics.leaves_per_depth) counts.append(count);
+  return counts;
+}
+
 const char* const kModuleDoc = R"doc(Exact minimum distance between non-convex triangle meshes (cfl).
 
-A Model is a triangle mesh with its precomputed discrete Voronoi regions (a voxel grid whose voxels list
-the triangles that can be closest to them); a Mesh is a triangle mesh with only its bounding volume
-hierarchy. distance(a, pose_a, b, pose_b) returns the exact minimum distance between a Model a and a Model
-or Mesh b, with the two closest points and their triangle ids; distances() does the same for many poses of
-b at once on all cores; collide() reports intersecting triangle pairs.
+A Model is a triangle mesh with its precomputed discrete Voronoi regions (cubic cells around the mesh,
+refined where needed, each listing the triangles that can be closest to a point in it); a Mesh is a
+triangle mesh with only its bounding volume hierarchy. distance(a, pose_a, b, pose_b) returns the exact
+minimum distance between a Model a and a Model or Mesh b, with the two closest points and their triangle
+ids; distances() does the same for many poses of b at once on all cores; collide() reports intersecting
+triangle pairs.
 
 Conventions
 -----------
@@ -391,7 +401,7 @@ PYBIND11_MODULE(_cfl, m) {
   // --- Mesh ------------------------------------------------------------------------------------------------
   py::class_<cfl::MeshModel, std::shared_ptr<cfl::MeshModel>> mesh(m, "Mesh", R"doc(
 A triangle mesh with its bounding volume hierarchy: what a query needs of its second model b. Cheap to
-build (O(n log n), no voxels); use a Model instead where the mesh is the first argument of distance().
+build (O(n log n), no Voronoi regions); use a Model instead where the mesh is the first argument of distance().
 Immutable. Pickles.
 )doc");
   mesh.def(py::init([](py::handle vertices, py::handle faces) {
@@ -448,53 +458,70 @@ Raises OSError (FileNotFoundError when missing) with a message naming the file a
 
   // --- Model -----------------------------------------------------------------------------------------------
   py::class_<cfl::CflModel, std::shared_ptr<cfl::CflModel>> model(m, "Model", R"doc(
-A triangle mesh with its discrete Voronoi regions: a voxel grid around the mesh in which every voxel lists
-the triangles that can be closest to a point in it. Building costs seconds for meshes of thousands of
-triangles (save() it to build once); queries then take microseconds. Immutable and thread-safe. Pickles
-(as the bytes of a .cfl file).
+A triangle mesh with its discrete Voronoi regions: cubic cells around the mesh, each leaf cell listing the
+triangles that can be closest to a point in it. By default the regions are adaptive: cells are refined
+where their lists are long (near the surface) and kept coarse where lists are short (far from the mesh,
+over large flat triangles), so memory grows with the surface, not with the bounding box. Building costs
+seconds for meshes of thousands of triangles (save() it to build once); queries then take microseconds.
+Immutable and thread-safe. Pickles (as the bytes of a .cfl file).
 
-The build statistics are attributes: resolution, voxel_count, average_list_length, longest_list,
-distinct_lists, memory_bytes, build_seconds (also together as the dict `statistics`).
+The build statistics are attributes: resolution, voxel_count (leaves), leaves_per_depth,
+leaves_without_list, average_list_length, longest_list, distinct_lists, memory_bytes, coarsened,
+build_seconds (also together as the dict `statistics`).
 )doc");
   model.def(
       py::init([](py::handle vertices, py::handle faces, int resolution, double padding, bool topology_culling,
-                  int threads, py::handle progress) {
-        return buildModel(meshFromPython(vertices, faces), resolution, padding, topology_culling, threads, progress);
+                  int threads, std::int64_t memory_limit, py::handle progress) {
+        return buildModel(meshFromPython(vertices, faces), resolution, padding, topology_culling, threads,
+                          memory_limit, progress);
       }),
       "vertices"_a, "faces"_a = py::none(), py::kw_only(), "resolution"_a = build_defaults.resolution,
       "padding"_a = build_defaults.padding, "topology_culling"_a = build_defaults.topology_culling,
-      "threads"_a = build_defaults.threads, "progress"_a = py::none(),
-      R"doc(Model(vertices: ArrayLike | MeshLike, faces: ArrayLike | None = None, *, resolution: int = 0, padding: float = 3.0, topology_culling: bool = True, threads: int = 0, progress: None | bool | Callable[[float], Any] = None)
+      "threads"_a = build_defaults.threads, "memory_limit"_a = build_defaults.memory_limit, "progress"_a = py::none(),
+      R"doc(Model(vertices: ArrayLike | MeshLike, faces: ArrayLike | None = None, *, resolution: int = 0, padding: float = 3.0, topology_culling: bool = True, threads: int = 0, memory_limit: int = 0, progress: None | bool | Callable[[float], Any] = None)
 
 Model(vertices, faces, *, ...) or Model(obj, *, ...)
 
-Builds the voxel lists of a mesh.
+Builds the discrete Voronoi regions of a mesh: cubic cells around it, each leaf listing the triangles that
+can be closest to a point in it.
 
 vertices: (n, 3) array of numbers, vertex coordinates in the mesh's own frame and unit.
 faces: (m, 3) array of integers, each row three indices into vertices. Triangles need no topology: open,
     non-manifold, duplicated or degenerate triangles are fine.
 obj: instead of the two arrays, any object with .vertices and .faces (trimesh.Trimesh, cfl.Mesh, ...).
-resolution: voxels along the grid's longest axis; 0 picks one from the mean edge length. Build time and
-    memory grow with its cube; finer grids answer short-range queries faster.
-padding: the grid covers the mesh's bounding box scaled by this factor (>= 1) about its center. Queries
-    stay exact outside the grid, only slower.
+resolution: 0 (the default) builds adaptive regions: a coarse root grid whose cells split in eight where
+    their lists are long and stay whole where lists are short, sized automatically; a leaf whose list
+    would still be too long to pay off stores none, and queries use the mesh's hierarchy there.
+    N > 0 builds the paper's uniform grid instead, N cells along the longest axis of the padded box and
+    no refinement; its build time and memory grow with N cubed.
+padding: the regions cover the mesh's bounding box grown on every side by (padding - 1) / 2 times its
+    longest extent, the same margin on every axis (>= 1; the default 3 leaves one longest extent on each
+    side). Queries stay exact outside the regions, only slower; outside cells are coarse, so a large
+    padding costs little memory.
 topology_culling: drop list entries provably covered by a neighbouring triangle (conservative on any mesh).
 threads: build threads, 0 = every hardware thread. The model does not depend on it.
+memory_limit: upper bound in bytes on the regions' memory (the mesh and its hierarchy come on top); 0 =
+    the smaller of half of the machine's physical memory and 32 MiB + 2 KiB per triangle. An adaptive
+    build that would exceed it stops refining (lists get longer, answers stay exact) and sets
+    `coarsened`; a limit that the starting grid's cells alone exceed (for resolution > 0, the whole grid)
+    is refused.
 progress: None, True for a progress bar on stderr, or a callable called with the fraction done in [0, 1]
     a few times per second from this thread. An exception it raises is re-raised when the build ends.
 
-Raises TypeError / ValueError as Mesh() does, and ValueError for resolution < 0, padding < 1 or a grid
-too large for memory.
+Raises TypeError / ValueError as Mesh() does, and ValueError for resolution < 0, padding < 1 or not
+finite, memory_limit < 0, or a grid whose cells alone exceed memory_limit (the message says how many
+cells and bytes it would need).
 )doc");
   model.def_static(
       "from_file",
-      [](py::handle path, int resolution, double padding, bool topology_culling, int threads, py::handle progress) {
-        return buildModel(readMesh(path), resolution, padding, topology_culling, threads, progress);
+      [](py::handle path, int resolution, double padding, bool topology_culling, int threads,
+         std::int64_t memory_limit, py::handle progress) {
+        return buildModel(readMesh(path), resolution, padding, topology_culling, threads, memory_limit, progress);
       },
       "path"_a, py::kw_only(), "resolution"_a = build_defaults.resolution, "padding"_a = build_defaults.padding,
       "topology_culling"_a = build_defaults.topology_culling, "threads"_a = build_defaults.threads,
-      "progress"_a = py::none(),
-      R"doc(from_file(path: str | bytes | os.PathLike, *, resolution: int = 0, padding: float = 3.0, topology_culling: bool = True, threads: int = 0, progress: None | bool | Callable[[float], Any] = None) -> Model
+      "memory_limit"_a = build_defaults.memory_limit, "progress"_a = py::none(),
+      R"doc(from_file(path: str | bytes | os.PathLike, *, resolution: int = 0, padding: float = 3.0, topology_culling: bool = True, threads: int = 0, memory_limit: int = 0, progress: None | bool | Callable[[float], Any] = None) -> Model
 
 Reads a mesh file (see Mesh.from_file for the formats) and builds its Model (see Model() for the options).
 Raises OSError for a file that cannot be read or parsed (FileNotFoundError when missing).
@@ -543,11 +570,20 @@ atomically). Raises OSError when it cannot be written.
                               [](const cfl::CflModel& self) { return self.geometry.mesh.vertices.size(); });
   model.def_property_readonly(
       "resolution", [](const cfl::CflModel& self) { return self.statistics.resolution; },
-      "Voxels along the grid's longest axis.");
-  model.def_property_readonly("voxel_count", [](const cfl::CflModel& self) { return self.statistics.voxel_count; });
+      "Cells of the finest level along the longest axis of the regions (N for a uniform grid of resolution N).");
+  model.def_property_readonly(
+      "voxel_count", [](const cfl::CflModel& self) { return self.statistics.voxel_count; },
+      "Leaves of the regions (cells not split further), with or without a list; sum(leaves_per_depth).");
+  model.def_property_readonly(
+      "leaves_per_depth",
+      [](const cfl::CflModel& self) { return leavesPerDepth(self.statistics); },
+      "List of int: leaves at each depth, the root cells' level first (one entry for a uniform grid).");
+  model.def_property_readonly(
+      "leaves_without_list", [](const cfl::CflModel& self) { return self.statistics.leaves_without_list; },
+      "Leaves that store no list (it would be too long to pay off): queries use the mesh's hierarchy there.");
   model.def_property_readonly(
       "average_list_length", [](const cfl::CflModel& self) { return self.statistics.average_list_length; },
-      "Mean number of triangles listed per voxel.");
+      "Mean number of triangles per list, over the leaves that store one.");
   model.def_property_readonly("longest_list", [](const cfl::CflModel& self) { return self.statistics.longest_list; });
   model.def_property_readonly(
       "distinct_lists", [](const cfl::CflModel& self) { return self.statistics.distinct_lists; },
@@ -556,6 +592,9 @@ atomically). Raises OSError when it cannot be written.
       "memory_bytes", [](const cfl::CflModel& self) { return self.statistics.memory_bytes; },
       "Bytes of the model, mesh and hierarchy included.");
   model.def_property_readonly(
+      "coarsened", [](const cfl::CflModel& self) { return self.statistics.coarsened; },
+      "True when the build stopped refining at memory_limit (longer lists, answers still exact).");
+  model.def_property_readonly(
       "build_seconds", [](const cfl::CflModel& self) { return self.statistics.build_seconds; },
       "Wall time of the build (kept through save/load).");
   model.def_property_readonly(
@@ -563,15 +602,17 @@ atomically). Raises OSError when it cannot be written.
       [](const cfl::CflModel& self) {
         const cfl::BuildStatistics& s = self.statistics;
         return py::dict("resolution"_a = s.resolution, "voxel_count"_a = s.voxel_count,
+                        "leaves_per_depth"_a = leavesPerDepth(s), "leaves_without_list"_a = s.leaves_without_list,
                         "average_list_length"_a = s.average_list_length, "longest_list"_a = s.longest_list,
                         "distinct_lists"_a = s.distinct_lists, "memory_bytes"_a = s.memory_bytes,
-                        "build_seconds"_a = s.build_seconds);
+                        "coarsened"_a = s.coarsened, "build_seconds"_a = s.build_seconds);
       },
       "The build statistics as a dict.");
   model.def("__repr__", [](const cfl::CflModel& self) {
     return "cfl.Model(" + std::to_string(self.geometry.mesh.triangles.size()) + " triangles, resolution " +
            std::to_string(self.statistics.resolution) + ", " + std::to_string(self.statistics.voxel_count) +
-           " voxels, " + megabytes(self.statistics.memory_bytes) + ")";
+           " leaves, " + megabytes(self.statistics.memory_bytes) + (self.statistics.coarsened ? ", coarsened" : "") +
+           ")";
   });
   model.def(py::pickle(
       [](const cfl::CflModel& self) {
@@ -594,7 +635,8 @@ distance: the minimum distance (>= 0, 0 when touching or intersecting; inf with 
     upper_bound was given and no pair is closer).
 point_a, point_b: (3,) world-frame closest points, on triangle_a of a and triangle_b of b; equal when the
     meshes intersect.
-triangle_pairs, voxel_tests: work done by the query (exact triangle distances, bound tests).
+triangle_pairs, voxel_tests: work done by the query (exact triangle distances; tests of region cells and
+    bounding volumes).
 )doc")
       .def_readonly("distance", &cfl::DistanceResult::distance)
       .def_property_readonly("point_a", [](const cfl::DistanceResult& r) { return vectorToArray(r.point_a); })
@@ -676,7 +718,7 @@ list of up to max_contacts Contact objects (intersecting triangle pairs).
 
 The exact minimum distance between Model a placed at pose_a and Model or Mesh b placed at pose_b.
 
-a: cfl.Model (its voxel lists answer the query).
+a: cfl.Model (its Voronoi regions answer the query).
 pose_a: 4x4 rigid transform X_WA, world from a's frame (None = identity).
 b: cfl.Model or cfl.Mesh.
 pose_b: 4x4 rigid transform X_WB, world from b's frame (None = identity).

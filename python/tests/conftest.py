@@ -33,8 +33,33 @@ def meshes():
 
 @pytest.fixture(scope="session")
 def models():
-    # Coarse grids keep the builds fast; queries are exact whatever the resolution, so nothing is lost.
+    # Coarse uniform grids (the paper's mode, 12 cells along the longest axis) keep the builds fast; queries
+    # are exact whatever the regions, so nothing is lost.
     return {name: cfl.Model(v, f, resolution=12, threads=1) for name, (v, f) in MESHES.items()}
+
+
+@pytest.fixture(scope="session")
+def adaptive_models():
+    # The default build: adaptive regions, refined where lists are long, some leaves without a list.
+    return {name: cfl.Model(v, f, threads=1) for name, (v, f) in MESHES.items()}
+
+
+def coarsened_model(vertices, faces):
+    """An adaptive model of the mesh built under a memory_limit that stops its refinement (coarsened=True).
+
+    The limit is searched downwards from what the unlimited build uses, since the bytes a mesh needs depend
+    on the builder's tuning; a limit below what the unrefined root cells need is refused (ValueError).
+    Returns (model, limit), or (None, None) when no limit coarsens the build (a mesh that does not refine).
+    """
+    full = cfl.Model(vertices, faces, threads=1)
+    for limit in np.geomspace(full.memory_bytes, full.memory_bytes / 20, 40).astype(np.int64):
+        try:
+            model = cfl.Model(vertices, faces, threads=1, memory_limit=int(limit))
+        except ValueError:
+            break
+        if model.coarsened:
+            return model, int(limit)
+    return None, None
 
 
 def diagonal(*vertex_arrays):

@@ -14,7 +14,7 @@ PAIRS = [("torus", "torus"), ("torus", "patch"), ("patch", "soup"), ("soup", "to
 
 
 def poses_for(name_a, name_b, count, seed):
-    """Random poses of B from overlapping A to two diagonals away (beyond A's grid, padding 3)."""
+    """Random poses of B from overlapping A to two diagonals away (beyond A's regions, padding 3)."""
     rng = np.random.default_rng(seed)
     scale = diagonal(MESHES[name_a][0], MESHES[name_b][0])
     X_WA = reference.random_pose(rng, 0.5 * scale)
@@ -26,8 +26,12 @@ def poses_for(name_a, name_b, count, seed):
     return X_WA, result
 
 
+@pytest.mark.parametrize("kind", ["uniform", "adaptive"])
 @pytest.mark.parametrize("name_a,name_b", PAIRS)
-def test_distance_equals_brute_force_at_random_poses(models, name_a, name_b):
+def test_distance_equals_brute_force_at_random_poses(models, adaptive_models, name_a, name_b, kind):
+    # Uniform grids (resolution=12) and the default adaptive regions, whose leaves without a list send
+    # queries to the Bvh.
+    built = models if kind == "uniform" else adaptive_models
     va, fa = MESHES[name_a]
     vb, fb = MESHES[name_b]
     tolerance = 1e-9 * diagonal(va, vb)
@@ -35,9 +39,9 @@ def test_distance_equals_brute_force_at_random_poses(models, name_a, name_b):
     mesh_b = cfl.Mesh(vb, fb)
     for X_WB in poses:
         expected, _, _ = reference.brute_force_distance(va, fa, X_WA, vb, fb, X_WB)
-        # b with voxel lists (a Model) and without (a Mesh) take different C++ overloads.
-        for b in (models[name_b], mesh_b):
-            assert cfl.distance(models[name_a], X_WA, b, X_WB).distance == pytest.approx(expected, abs=tolerance)
+        # b with regions (a Model) and without (a Mesh) take different C++ overloads.
+        for b in (built[name_b], mesh_b):
+            assert cfl.distance(built[name_a], X_WA, b, X_WB).distance == pytest.approx(expected, abs=tolerance)
 
 
 @pytest.mark.parametrize("name_a,name_b", PAIRS)

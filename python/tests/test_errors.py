@@ -63,10 +63,19 @@ def test_object_without_faces_is_a_type_error():
     ({"threads": -1}, ValueError, "threads must be >= 0"),
     ({"progress": 5}, TypeError, "progress must be None, True .* or a callable"),
     ({"resolution": "8"}, TypeError, ""),
+    ({"memory_limit": -1}, ValueError, "memory_limit must be >= 0"),
+    ({"memory_limit": 1.5e6}, TypeError, ""),
+    # A uniform grid whose cells alone exceed the limit is refused, saying what it would need.
+    ({"resolution": 64, "memory_limit": 100000}, ValueError, "resolution 64 needs .* cells .* memory limit of 100000"),
 ])
-def test_bad_build_options(options, error, message):
+def test_bad_build_options(options, error, message, tmp_path):
     with pytest.raises(error, match=message):
         cfl.Model(V, F, **options)
+    if cfl._cfl._have_mesh_files:
+        path = tmp_path / "torus.obj"
+        reference.write_obj(path, V, F)
+        with pytest.raises(error, match=message):
+            cfl.Model.from_file(path, **options)
 
 
 # --- poses and query options ---------------------------------------------------------------------------------
@@ -112,7 +121,7 @@ def test_bad_query_options(a, options, error, message):
 
 def test_wrong_model_types(a):
     mesh = cfl.Mesh(V, F)
-    with pytest.raises(TypeError, match=r"a must be a cfl.Model \(the side whose voxel lists answer the query\), got a Mesh"):
+    with pytest.raises(TypeError, match=r"a must be a cfl.Model \(the side whose Voronoi regions answer the query\), got a Mesh"):
         cfl.distance(mesh, None, a, None)
     with pytest.raises(TypeError, match="b must be a cfl.Model or a cfl.Mesh, got a ndarray"):
         cfl.distance(a, None, V, None)

@@ -72,3 +72,14 @@ def test_help_explains_frames_and_units():
     text = cfl.distance.__doc__
     assert "world from a's frame" in text and "world frame" in text and "unit" in text
     assert "world from" in cfl.__doc__ and "unit" in cfl.__doc__
+
+
+def test_help_describes_the_adaptive_regions():
+    # The build options as the C++ builder now reads them (no uniform voxel grid picked from the mean edge
+    # length, no padding about the center).
+    model_doc = cfl.Model.__doc__ + cfl.Model.__init__.__doc__
+    for phrase in ("adaptive", "uniform grid", "(padding - 1) / 2", "memory_limit", "coarsened", "leaves_per_depth",
+                   "leaves_without_list"):
+        assert phrase in model_doc, phrase
+    for stale in ("voxel grid", "mean edge length", "about its center", "scaled by this factor"):
+        assert stale not in model_doc and stale not in cfl.__doc__, stale

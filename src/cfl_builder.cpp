@@ -541,15 +541,18 @@ float lowerFloat(double x) {
 // shrink with the distance, and far cells serve only far queries, which the Bvh bounds mostly answer).
 constexpr std::uint32_t kListTarget = 8;
 constexpr double kSmallestCell = 1.25;
-constexpr double kFarCellRatio = 1.0;
+constexpr double kFarCellRatio = 0.5;
 // A leaf whose list stays longer than this stores none (RegionTree::kNoList): scanning it would cost more
 // than testing what falls there against the Bvh, and storing it more memory than the rest of the model.
-// Next to the mesh (a leaf no farther from it than its edge) lists are what short-range queries scan, and
-// the entry bounds cut most of a long one short; a thin plate's leaves list both faces. Farther out a leaf
-// serves only farther queries, which its lower bound mostly dismisses.
+// Next to the mesh (a leaf no farther from it than kNearCells edges) lists are what short-range queries
+// scan, and the entry bounds cut most of a long one short; a thin plate's leaves list both faces. Farther
+// out a leaf serves only farther queries, which its lower bound mostly dismisses. A query meeting a leaf
+// without a list continues on the Bvhs, which near the mesh costs more than a long list: on the bunny,
+// caps of 32 within one edge doubled the short-range query time.
+constexpr double kNearCells = 4;
 constexpr std::uint32_t kLongestNearList = 256;
-constexpr std::uint32_t kLongestFarList = 32;
-constexpr int kDeepest = 20;           // levels below the root; RegionTree::forEachLeafInBox's stack allows 24
+constexpr std::uint32_t kLongestFarList = 64;
+constexpr int kDeepest = 20;  // levels below the root, within RegionTree::kMaxDepth
 
 // Shared across the root cells' builds: the bytes committed so far, against the memory limit.
 struct Budget {
@@ -577,7 +580,7 @@ class SubtreeBuilder {
     }
     const std::uint32_t leaf = static_cast<std::uint32_t>(out.list_length.size());
     out.nodes[slot] = RegionTree::kLeafBit | leaf;
-    const bool near = out.lists.lower_bound <= size;
+    const bool near = out.lists.lower_bound <= kNearCells * size;
     const bool stored = !adaptive_ || length <= (near ? kLongestNearList : kLongestFarList);
     if (!stored) {
       out.lists.ids.resize(begin);
@@ -691,9 +694,10 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   const std::int64_t floor_bytes = root_count * std::int64_t(sizeof(std::uint32_t) * 3 + sizeof(float) * 9);
   if (root_count > std::numeric_limits<std::uint32_t>::max() / 4 || floor_bytes > memory_limit) {
     std::ostringstream message;
-    message << "resolution " << options.resolution << " needs " << tree.root_dims[0] << " x " << tree.root_dims[1]
-            << " x " << tree.root_dims[2] << " = " << root_count << " cells and at least " << floor_bytes
-            << " bytes, more than the memory limit of " << memory_limit << " bytes; use a smaller resolution";
+    message << (adaptive ? std::string("the adaptive regions' root grid") : "resolution " + std::to_string(options.resolution))
+            << " needs " << tree.root_dims[0] << " x " << tree.root_dims[1] << " x " << tree.root_dims[2] << " = "
+            << root_count << " cells and at least " << floor_bytes << " bytes, more than the memory limit of "
+            << memory_limit << " bytes; " << (adaptive ? "raise memory_limit" : "use a smaller resolution");
     throw Error(message.str());
   }
   const int threads = workerCount(options.threads);

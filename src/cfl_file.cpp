@@ -67,7 +67,7 @@ constexpr std::size_t kLeafRecordSize = 4 + 4 + 8 * 4;
 // Eight 8-byte figures, the flags and the size of leaves_per_depth; its entries follow.
 constexpr std::size_t kStatisticsFixedSize = 8 * 8 + 4 + 8;
 // RegionTree::forEachLeafInBox keeps its pending cells in a fixed stack sized for this depth.
-constexpr int kMaxTreeDepth = 24;
+constexpr int kMaxTreeDepth = RegionTree::kMaxDepth;
 
 using CornerDistances = std::array<float, 8>;
 static_assert(sizeof(float) == 4 && std::numeric_limits<float>::is_iec559,

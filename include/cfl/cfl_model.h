@@ -37,10 +37,12 @@ struct BuildOptions {
   bool topology_culling = true;
   /// Worker threads for the build; 0 means every hardware thread. The result does not depend on it.
   int threads = 0;
-  /// Upper bound on the regions' memory in bytes (the mesh and its Bvh come on top); 0 means the smaller of
-  /// half of this machine's physical memory and 32 MiB + 2 KiB per triangle. An adaptive build that would
-  /// exceed it stops refining (its lists get longer, never wrong) and says so in BuildStatistics::coarsened;
-  /// a uniform one (resolution > 0) whose cells alone exceed it is refused.
+  /// Memory budget of the regions in bytes (the mesh and its Bvh come on top); 0 means the smaller of half
+  /// of this machine's physical memory and 32 MiB + 2 KiB per triangle. The root cells are always built: a
+  /// limit below what they need at the least (about 48 bytes each) is refused with a cfl::Error, for
+  /// uniform and adaptive builds alike. Past that, an adaptive build stops refining once its leaves and
+  /// lists reach the budget (its lists get longer, never wrong) and says so in BuildStatistics::coarsened;
+  /// the root cells' own lists may take the model somewhat past it.
   std::int64_t memory_limit = 0;
   /// Called from the calling thread with the fraction done, in [0, 1], a few hundred times per build.
   std::function<void(double)> progress;
@@ -80,8 +82,9 @@ struct CflModel {
 ///
 /// Adaptive (resolution 0): a root grid of 16 cells along the padded box's longest axis; a cell splits in
 /// eight while its list holds more than 8 triangles, it is larger than 1.25 mean edges of those triangles,
-/// and it is larger than its distance from the mesh. A leaf whose list is still longer than 256 triangles
-/// next to the mesh, or 32 farther out, stores none (RegionTree::kNoList); queries use the Bvh there.
+/// and it is larger than half its distance from the mesh. A leaf whose list is still longer than 256
+/// triangles within 4 of its edges from the mesh, or 64 farther out, stores none (RegionTree::kNoList);
+/// queries use the Bvh there.
 ///
 /// Throws cfl::Error for an invalid mesh (see validateMesh), resolution < 0, padding < 1 or not finite, a
 /// negative memory_limit, or a uniform grid whose cells alone would exceed the memory limit (the message

@@ -38,6 +38,8 @@ struct RegionTree {
   /// costs (far above a flat part, or among many tiny triangles), so queries test what falls in it against
   /// the Bvh instead. Only adaptive regions have such leaves.
   static constexpr std::uint32_t kNoList = 0xffffffffu;
+  /// The deepest level a leaf may have below the root (forEachLeafInBox's fixed stack is sized for it).
+  static constexpr int kMaxDepth = 24;
 
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();  ///< Min corner of the root grid.
   double root_size = 0;                              ///< Edge of a root cell.
@@ -142,7 +144,7 @@ struct RegionTree {
       int depth;
       double x, y, z;  // lower corner in root-cell units
     };
-    Pending stack[8 * 24];  // at most 7 pending siblings per level
+    Pending stack[8 * kMaxDepth];  // at most 7 pending siblings per level
     for (int k = first[2]; k <= last[2]; ++k) {
       for (int j = first[1]; j <= last[1]; ++j) {
         for (int i = first[0]; i <= last[0]; ++i) {

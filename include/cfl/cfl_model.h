@@ -81,7 +81,7 @@ struct CflModel {
 /// test shows another triangle strictly closer everywhere in V, or by topology culling.
 ///
 /// Adaptive (resolution 0): a root grid of 16 cells along the padded box's longest axis; a cell splits in
-/// eight while its list holds more than 8 triangles, it is larger than 1.25 mean edges of those triangles,
+/// eight while its list holds more than 8 triangles, it is larger than 2 mean edges of those triangles,
 /// and it is larger than half its distance from the mesh. A leaf whose list is still longer than 256
 /// triangles within 4 of its edges from the mesh, or 64 farther out, stores none (RegionTree::kNoList);
 /// queries use the Bvh there.

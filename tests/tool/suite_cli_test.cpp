@@ -6,67 +6,29 @@
 #include "cfl/mesh_io.h"
 #include "support/test_meshes.h"
 
+#include "tool_process.h"
+
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
-#include <fstream>
 #include <map>
 #include <set>
 #include <sstream>
 #include <string>
 #include <vector>
 
-#ifndef CFL_TOOL_PATH
-#error "CFL_TOOL_PATH must name the cfl binary"
-#endif
-
 namespace cfl {
 namespace {
 
-struct ToolRun {
-  int status = -1;
-  std::string out;
-  std::string err;
-};
+using tool_test::contains;
+using tool_test::readFile;
+using tool_test::ToolRun;
+using tool_test::writeFile;
 
-std::string readFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-void writeFile(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-}
-
-std::string quote(const std::string& word) {
-  std::string q = "'";
-  for (char c : word) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-void writeObj(const std::string& path, const TriangleMesh& m) {
-  std::string s;
-  char line[128];
-  for (const auto& v : m.vertices) {
-    std::snprintf(line, sizeof line, "v %.17g %.17g %.17g\n", v.x(), v.y(), v.z());
-    s += line;
-  }
-  for (const auto& t : m.triangles) {
-    s += "f " + std::to_string(t[0] + 1) + " " + std::to_string(t[1] + 1) + " " + std::to_string(t[2] + 1) + "\n";
-  }
-  writeFile(path, s);
-}
-
-bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+void writeObj(const std::string& path, const TriangleMesh& m) { writeFile(path, tool_test::objText(m)); }
 
 std::vector<std::string> splitOn(const std::string& text, char separator) {
   std::vector<std::string> parts;
@@ -82,29 +44,11 @@ std::vector<std::string> words(const std::string& text) {
   return w;
 }
 
-class SuiteCliTest : public ::testing::Test {
+class SuiteCliTest : public tool_test::ToolTempDirTest {
  protected:
-  void SetUp() override {
-    std::string pattern = ::testing::TempDir() + "cfl_suite_cli_XXXXXX";
-    ASSERT_NE(::mkdtemp(pattern.data()), nullptr);
-    dir_ = pattern;
-  }
-  void TearDown() override { std::system(("rm -rf " + quote(dir_)).c_str()); }
-  std::string path(const std::string& name) const { return dir_ + "/" + name; }
+  SuiteCliTest() : ToolTempDirTest("cfl_suite_cli_") {}
 
-  ToolRun run(const std::vector<std::string>& args) {
-    std::string command = quote(CFL_TOOL_PATH);
-    for (const auto& a : args) command += " " + quote(a);
-    command += " < /dev/null > " + quote(path("stdout.txt")) + " 2> " + quote(path("stderr.txt"));
-    const int raw = std::system(command.c_str());
-    ToolRun r;
-    r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-    r.out = readFile(path("stdout.txt"));
-    r.err = readFile(path("stderr.txt"));
-    return r;
-  }
-
-  std::string dir_;
+  ToolRun run(const std::vector<std::string>& args) { return tool_test::runTool(dir_, args); }
 };
 
 // One table row, split into its '|'-separated columns; empty when the case has no row.

@@ -6,94 +6,39 @@
 #include "pose_file.h"
 #include "support/test_meshes.h"
 
+#include "tool_process.h"
+
 #include <gtest/gtest.h>
 
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
-#include <fstream>
 #include <sstream>
 #include <string>
-
-#ifndef CFL_TOOL_PATH
-#error "CFL_TOOL_PATH must name the cfl binary"
-#endif
+#include <vector>
 
 namespace cfl {
 namespace {
 
-struct ToolRun {
-  int status = -1;
-  std::string out;
-  std::string err;
-};
+using tool_test::contains;
+using tool_test::objText;
+using tool_test::readFile;
+using tool_test::ToolRun;
+using tool_test::writeFile;
 
-std::string readFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-void writeFile(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-}
-
-std::string quote(const std::string& word) {
-  std::string q = "'";
-  for (char c : word) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-std::string objText(const TriangleMesh& m) {
-  std::string s;
-  char line[128];
-  for (const auto& v : m.vertices) {
-    std::snprintf(line, sizeof line, "v %.17g %.17g %.17g\n", v.x(), v.y(), v.z());
-    s += line;
-  }
-  for (const auto& t : m.triangles) s += "f " + std::to_string(t[0] + 1) + " " + std::to_string(t[1] + 1) + " " + std::to_string(t[2] + 1) + "\n";
-  return s;
-}
-
-class ToolCliTest : public ::testing::Test {
+class ToolCliTest : public tool_test::ToolTempDirTest {
  protected:
-  void SetUp() override {
-    std::string pattern = ::testing::TempDir() + "cfl_tool_cli_XXXXXX";
-    ASSERT_NE(::mkdtemp(pattern.data()), nullptr);
-    dir_ = pattern;
-  }
-  void TearDown() override { std::system(("rm -rf " + quote(dir_)).c_str()); }
-  std::string path(const std::string& name) const { return dir_ + "/" + name; }
+  ToolCliTest() : ToolTempDirTest("cfl_tool_cli_") {}
 
   // Runs the tool with `args` (shell words, quoted here), standard input from `input`.
   ToolRun run(const std::vector<std::string>& args, const std::string& input = "", const std::string& env = "") {
     writeFile(path("stdin.txt"), input);
-    std::string command = env.empty() ? "" : "/usr/bin/env " + env + " ";
-    command += quote(CFL_TOOL_PATH);
-    for (const auto& a : args) command += " " + quote(a);
-    command += " < " + quote(path("stdin.txt")) + " > " + quote(path("stdout.txt")) + " 2> " + quote(path("stderr.txt"));
-    const int raw = std::system(command.c_str());
-    ToolRun r;
-    r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-    r.out = readFile(path("stdout.txt"));
-    r.err = readFile(path("stderr.txt"));
-    return r;
+    return tool_test::runTool(dir_, args, path("stdin.txt"), env);
   }
 
   std::string writeMesh(const std::string& name, const TriangleMesh& mesh) {
     writeFile(path(name), objText(mesh));
     return path(name);
   }
-
-  std::string dir_;
 };
-
-bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 TEST_F(ToolCliTest, NoCommandIsAUsageError) {
   const ToolRun r = run({});

@@ -97,8 +97,11 @@ def test_build_statistics_of_adaptive_regions_are_consistent(adaptive_models):
     for name, model in adaptive_models.items():
         check_statistics(model)
         assert model.resolution > 0 and not model.coarsened
-    # Cells are refined where lists are long: some test mesh gets leaves below the root level.
-    assert any(len(model.leaves_per_depth) > 1 for model in adaptive_models.values())
+    # Cells are refined where lists are long: a finely tessellated sheet gets leaves below the root level
+    # (the small test meshes' triangles are as large as the root cells, which then need no split).
+    fine = cfl.Model(*reference.wavy_patch(n=33), threads=1)
+    check_statistics(fine)
+    assert len(fine.leaves_per_depth) > 1
 
 
 def test_padding_grows_the_box_by_the_longest_extent_on_every_side():
@@ -113,9 +116,9 @@ def test_padding_grows_the_box_by_the_longest_extent_on_every_side():
 
 
 def test_memory_limit_coarsens_adaptive_builds_and_keeps_them_exact(adaptive_models):
-    v, f = MESHES["patch"]
-    full = adaptive_models["patch"]
-    assert len(full.leaves_per_depth) > 1  # the sheet refines, so a limit has something to stop
+    v, f = reference.wavy_patch(n=33)
+    full = cfl.Model(v, f, threads=1)
+    assert len(full.leaves_per_depth) > 1  # the fine sheet refines, so a limit has something to stop
     model, limit = coarsened_model(v, f)
     assert model is not None, "no memory_limit coarsened the wavy sheet's build"
     check_statistics(model)
@@ -179,8 +182,12 @@ def test_from_file_reads_the_written_obj_exactly(tmp_path):
     for loaded in (model, mesh):
         np.testing.assert_array_equal(loaded.vertices[loaded.faces], v[f])
     assert model.resolution == 10
-    # from_file takes every build option of Model(), memory_limit included.
+    # from_file takes every build option of Model(), memory_limit included (on a sheet fine enough to refine).
+    v, f = reference.wavy_patch(n=33)
+    path = tmp_path / "fine_patch.obj"
+    reference.write_obj(path, v, f)
     _, limit = coarsened_model(v, f)
+    assert limit is not None, "no memory_limit coarsened the fine sheet's build"
     limited = cfl.Model.from_file(path, memory_limit=limit, threads=1)
     assert limited.coarsened
     assert limited.statistics["leaves_per_depth"] == cfl.Model(v, f, memory_limit=limit, threads=1).leaves_per_depth

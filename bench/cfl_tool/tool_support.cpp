@@ -156,10 +156,12 @@ void printStatistics(const CflModel& model, std::ostream& out) {
                 perTriangle(bytesOf(r.leaf_list) + bytesOf(r.leaf_lower_bound) + bytesOf(r.leaf_corner_distance)),
                 perTriangle(bytesOf(r.leaf_list)), perTriangle(bytesOf(r.leaf_lower_bound)),
                 perTriangle(bytesOf(r.leaf_corner_distance)));
-  out << format("  lists:             %.1f B/triangle (%zu entries: ids %.1f, bounds %.1f; offsets %.1f)\n",
-                perTriangle(bytesOf(r.list_triangles) + bytesOf(r.list_entry_bounds) + bytesOf(r.list_offsets)),
-                r.list_triangles.size(), perTriangle(bytesOf(r.list_triangles)), perTriangle(bytesOf(r.list_entry_bounds)),
-                perTriangle(bytesOf(r.list_offsets)));
+  out << format("  lists:             %.1f B/triangle (%zu entries: ids and bases %.1f, wide ids' high bits %.1f, bounds %.1f; "
+                "offsets %.1f)\n",
+                perTriangle(bytesOf(r.list_entry_ids) + bytesOf(r.list_high_ids) + bytesOf(r.list_entry_bounds) +
+                            bytesOf(r.list_offsets)),
+                r.list_entry_bounds.size(), perTriangle(bytesOf(r.list_entry_ids)), perTriangle(bytesOf(r.list_high_ids)),
+                perTriangle(bytesOf(r.list_entry_bounds)), perTriangle(bytesOf(r.list_offsets)));
   out << format("build time:          %.3f s\n", s.build_seconds);
   out << format("topology culling:    %s\n", model.topology_culling ? "on" : "off");
 }

@@ -509,7 +509,7 @@ struct Subtree {
   std::vector<std::uint32_t> list_length;
   std::vector<std::uint8_t> depth;
   std::vector<float> lower_bound;
-  std::vector<LeafCorners> corner_distance;
+  std::vector<std::array<float, 8>> corner_distance;
   CellListOutput lists;  // the leaves' lists, one after another
 };
 
@@ -564,10 +564,9 @@ struct Budget {
 
 class SubtreeBuilder {
  public:
-  // `tree`: the root grid, whose root_size sets the unit of the corner codes.
-  SubtreeBuilder(const BuildContext& context, const RegionTree& tree, const std::vector<double>& triangle_edge,
-                 Budget& budget, bool adaptive)
-      : context_(context), tree_(tree), triangle_edge_(triangle_edge), budget_(budget), adaptive_(adaptive) {}
+  SubtreeBuilder(const BuildContext& context, const std::vector<double>& triangle_edge, Budget& budget,
+                 bool adaptive)
+      : context_(context), triangle_edge_(triangle_edge), budget_(budget), adaptive_(adaptive) {}
 
   // Builds the cell at `slot` of out.nodes and, when it splits, its descendants.
   void build(ListScratch& scratch, const Eigen::Vector3d& min_corner, double size, int depth,
@@ -591,7 +590,9 @@ class SubtreeBuilder {
     out.list_length.push_back(stored ? length : RegionTree::kNoList);
     out.depth.push_back(static_cast<std::uint8_t>(depth));
     out.lower_bound.push_back(lowerFloat(out.lists.lower_bound));
-    out.corner_distance.push_back(tree_.encodeCorners(depth, corner_distance));
+    std::array<float, 8> corners;
+    for (int n = 0; n < 8; ++n) corners[n] = lowerFloat(corner_distance[n]);
+    out.corner_distance.push_back(corners);
     // A stored list: its base id, and per entry a 16-bit id and a bound (RegionTree::list_entry_ids).
     budget_.bytes += std::int64_t(kLeafBytes + (stored ? 4 + length * 3 : 0));
   }
@@ -599,7 +600,7 @@ class SubtreeBuilder {
  private:
   // A leaf's own arrays and its node, not counting its list.
   static constexpr std::int64_t kLeafBytes =
-      sizeof(std::uint32_t) * 2 + sizeof(float) + sizeof(LeafCorners);
+      sizeof(std::uint32_t) * 2 + sizeof(float) + sizeof(std::array<float, 8>);
 
   bool shouldSplit(const Subtree& out, std::size_t begin, std::uint32_t length, double size, int depth) const {
     if (!adaptive_ || depth >= kDeepest) return false;
@@ -656,7 +657,6 @@ class SubtreeBuilder {
   }
 
   const BuildContext& context_;
-  const RegionTree& tree_;
   const std::vector<double>& triangle_edge_;
   Budget& budget_;
   bool adaptive_;
@@ -749,7 +749,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   budget.limit = memory_limit;
   std::vector<Subtree> subtrees(root_count);
   tbb::enumerable_thread_specific<ListScratch> scratches;
-  const SubtreeBuilder builder(context, tree, triangle_edge, budget, adaptive);
+  const SubtreeBuilder builder(context, triangle_edge, budget, adaptive);
   done = 0;
   ProgressTicker cell_ticker(progress, [&] { report(0.1, 0.95, root_count); });
   arena.execute([&] {

@@ -310,26 +310,6 @@ void validateListContents(const std::vector<std::uint32_t>& offsets, const IdAt&
   }
 }
 
-// The depth of every leaf of a tree that passed validateModelStructure's node checks.
-std::vector<std::uint8_t> leafDepths(const RegionTree& tree) {
-  std::vector<std::uint8_t> depths(tree.leaf_list.size(), 0);
-  std::vector<std::pair<std::uint32_t, std::uint8_t>> stack;
-  for (std::int64_t root = 0; root < tree.rootCount(); ++root) {
-    stack.push_back({std::uint32_t(root), 0});
-    while (!stack.empty()) {
-      const auto [node, depth] = stack.back();
-      stack.pop_back();
-      const std::uint32_t value = tree.nodes[node];
-      if (value & RegionTree::kLeafBit) {
-        depths[value & ~RegionTree::kLeafBit] = depth;
-        continue;
-      }
-      for (std::uint32_t child = 0; child < 8; ++child) stack.push_back({value + child, std::uint8_t(depth + 1)});
-    }
-  }
-  return depths;
-}
-
 void validateModelStructure(const CflModel& model, const std::string& context) {
   const auto fail = [&](const std::string& message) { throw Error(context + ": " + message); };
   const RegionTree& tree = model.regions;
@@ -475,10 +455,12 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
     if (!std::isfinite(lower) || lower < 0) {
       fail("leaf_lower_bound of leaf " + std::to_string(leaf) + " is " + numberText(lower) + ", must be finite and >= 0");
     }
-    const float base = tree.leaf_corner_distance[leaf].base;
-    if (!std::isfinite(base) || base < 0) {
-      fail("leaf_corner_distance of leaf " + std::to_string(leaf) + " has base " + numberText(base) +
-           ", must be finite and >= 0");
+    for (int corner = 0; corner < 8; ++corner) {
+      const float distance = tree.leaf_corner_distance[leaf][corner];
+      if (!std::isfinite(distance) || distance < 0) {
+        fail("leaf_corner_distance of leaf " + std::to_string(leaf) + " corner " + std::to_string(corner) + " is " +
+             numberText(distance) + ", must be finite and >= 0");
+      }
     }
   }
 
@@ -584,15 +566,7 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
   out.u64(tree.leaf_list.size());
   out.array(tree.leaf_list);
   out.array(tree.leaf_lower_bound);
-  {
-    // The file keeps the corner distances as floats: the codes decoded, each exactly a float.
-    const std::vector<std::uint8_t> depths = leafDepths(tree);
-    std::vector<std::array<float, 8>> corners(tree.leaf_list.size());
-    for (std::size_t leaf = 0; leaf < corners.size(); ++leaf) {
-      for (int corner = 0; corner < 8; ++corner) corners[leaf][corner] = tree.cornerDistance(std::uint32_t(leaf), corner, depths[leaf]);
-    }
-    out.array(corners);
-  }
+  out.array(tree.leaf_corner_distance);
 
   out.section(kTagList, list_size);
   out.u64(tree.list_offsets.size());
@@ -689,7 +663,6 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
   CflModel model;
   RegionTree& tree = model.regions;
   std::vector<std::int32_t> list_triangles;  // as the file stores them; encoded once read
-  std::vector<std::array<float, 8>> file_corners;  // likewise
   TriangleMesh mesh;
   bool seen_mesh = false, seen_tree = false, seen_nodes = false, seen_leaves = false, seen_list = false,
        seen_entry_bounds = false, seen_statistics = false;
@@ -748,18 +721,8 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
       in.array(tree.leaf_list, "leaf_list");
       tree.leaf_lower_bound.resize(leaf_count);
       in.array(tree.leaf_lower_bound, "leaf_lower_bound");
-      file_corners.resize(leaf_count);
-      in.array(file_corners, "leaf_corner_distance");
-      tree.leaf_corner_distance.assign(leaf_count, {});  // encoded once the tree is checked
-      for (std::size_t leaf = 0; leaf < leaf_count; ++leaf) {
-        for (int corner = 0; corner < 8; ++corner) {
-          const float distance = file_corners[leaf][corner];
-          if (!std::isfinite(distance) || distance < 0) {
-            fail("leaf_corner_distance of leaf " + std::to_string(leaf) + " corner " + std::to_string(corner) + " is " +
-                 numberText(distance) + ", must be finite and >= 0");
-          }
-        }
-      }
+      tree.leaf_corner_distance.resize(leaf_count);
+      in.array(tree.leaf_corner_distance, "leaf_corner_distance");
     } else if (tag == kTagList) {
       once(seen_list);
       const std::size_t offset_count = in.count(4, "list_offsets size");
@@ -826,14 +789,6 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
     tree.list_high_ids.shrink_to_fit();
   }
   validateModelStructure(model, name);
-  // The corner distances as RegionTree's codes (RegionTree::encodeCorners). From a file this library wrote,
-  // every value comes back as it was.
-  const std::vector<std::uint8_t> depths = leafDepths(tree);
-  for (std::size_t leaf = 0; leaf < file_corners.size(); ++leaf) {
-    double distances[8];
-    for (int corner = 0; corner < 8; ++corner) distances[corner] = file_corners[leaf][corner];
-    tree.leaf_corner_distance[leaf] = tree.encodeCorners(depths[leaf], distances);
-  }
   return model;
 }
 

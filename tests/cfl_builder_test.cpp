@@ -200,43 +200,6 @@ int checkConservative(const CflModel& model, const TriangleMesh& mesh, int sampl
   return failures;
 }
 
-// Corner distances are a float base and 12-bit codes above it: decoded, never above the distances encoded,
-// within a unit below them, and decoded values encode to the same corners again.
-TEST(RegionTreeCorners, CodesRoundDownAndDecodedValuesKeepTheirCodes) {
-  RegionTree tree;
-  tree.root_size = 0.7;
-  test::Rng rng(8);
-  std::uniform_real_distribution<double> unit_interval(0.0, 1.0);
-  for (int depth : {0, 3, 9}) {
-    const double size = tree.cellSize(depth);
-    const float unit = tree.cornerDistanceUnit(depth);
-    EXPECT_GT(double(unit), size / 2048);
-    EXPECT_LE(double(unit), size / 1024);
-    for (int n = 0; n < 2000; ++n) {
-      // Eight corner distances of a cell: within its diagonal of one another.
-      const double least = n % 5 == 0 ? 0.0 : unit_interval(rng) * 20 * size;  // 0: a corner on the mesh
-      double distance[8];
-      for (double& d : distance) d = least + unit_interval(rng) * std::sqrt(3.0) * size;
-      distance[n % 8] = least;
-      const LeafCorners corners = tree.encodeCorners(depth, distance);
-      double decoded[8];
-      RegionTree::decodeCorners(corners, unit, decoded);
-      tree.leaf_corner_distance.assign(1, corners);
-      for (int c = 0; c < 8; ++c) EXPECT_EQ(double(tree.cornerDistance(0, c, depth)), decoded[c]);
-      double again[8];
-      for (int c = 0; c < 8; ++c) {
-        EXPECT_LE(decoded[c], distance[c]);
-        EXPECT_GE(decoded[c], distance[c] - unit * (1 + 1e-6) - 1e-6 * distance[c]);
-        again[c] = decoded[c];
-      }
-      const LeafCorners round_trip = tree.encodeCorners(depth, again);
-      EXPECT_EQ(round_trip.base, corners.base);
-      for (int w = 0; w < 3; ++w) EXPECT_EQ(round_trip.packed[w], corners.packed[w]);
-      for (int c = 0; c < 8; ++c) EXPECT_EQ(RegionTree::cornerCode(round_trip, c), RegionTree::cornerCode(corners, c));
-    }
-  }
-}
-
 // Lists whose ids span less than 65536 keep 16-bit ids from a base; wider ones keep the high bits apart.
 TEST(RegionTreeLists, NarrowAndWideListsDecodeToTheirIds) {
   RegionTree tree;
@@ -340,13 +303,12 @@ TEST(CflBuilder, CornerDistancesMatchTheReferenceAndNeverExceedIt) {
         const int c = n % 8;
         const Eigen::Vector3d corner = leaf.min + leaf.size * Eigen::Vector3d(c & 1, (c >> 1) & 1, c >> 2);
         const double truth = test::referencePointMeshDistance(named.mesh, corner);
-        const double stored = tree.cornerDistance(leaf.leaf, c, leaf.depth);
-        // Stored as a code rounded down: never above the truth (the reference carries a few ulps of rounding,
+        const double stored = tree.leaf_corner_distance[leaf.leaf][c];
+        // Stored as float rounded down: never above the truth (the reference carries a few ulps of rounding,
         // and a corner on the surface a distance of pure noise, hence the 1e-15 terms), and below it by at
-        // most a code's unit and a float's rounding.
+        // most a float's rounding.
         const double noise = 1e-15 * diagonal;
-        const double unit = tree.cornerDistanceUnit(leaf.depth);
-        const bool ok = stored <= truth * (1 + 1e-15) + noise && stored >= truth * (1 - 3e-7) - unit - noise;
+        const bool ok = stored <= truth * (1 + 1e-15) + noise && stored >= truth * (1 - 3e-7) - noise;
         if (!ok && ++failures <= 5) {
           ADD_FAILURE() << named.name << " resolution " << resolution << " leaf " << leaf.leaf << " corner " << c
                         << ": stored " << stored << ", reference " << truth << ", difference " << stored - truth;

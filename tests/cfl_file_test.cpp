@@ -72,13 +72,7 @@ void expectSameModel(const CflModel& a, const CflModel& b) {
   EXPECT_EQ(r.nodes, s.nodes);
   EXPECT_EQ(r.leaf_list, s.leaf_list);
   EXPECT_TRUE(sameBits(r.leaf_lower_bound, s.leaf_lower_bound));
-  ASSERT_EQ(r.leaf_corner_distance.size(), s.leaf_corner_distance.size());
-  for (std::size_t leaf = 0; leaf < r.leaf_corner_distance.size(); ++leaf) {
-    const LeafCorners &x = r.leaf_corner_distance[leaf], &y = s.leaf_corner_distance[leaf];
-    ASSERT_TRUE(sameBits(x.base, y.base) && x.packed[0] == y.packed[0] && x.packed[1] == y.packed[1] &&
-                x.packed[2] == y.packed[2])
-        << "corners of leaf " << leaf;
-  }
+  EXPECT_TRUE(sameBits(r.leaf_corner_distance, s.leaf_corner_distance));
   EXPECT_EQ(r.list_offsets, s.list_offsets);
   EXPECT_EQ(r.list_entry_ids, s.list_entry_ids);
   EXPECT_EQ(r.list_high_ids, s.list_high_ids);
@@ -151,17 +145,16 @@ std::vector<int> nodeDepths(const RegionTree& tree) {
 }
 
 // Splits leaf node `node` of `model` into eight children appended to the nodes: child 0 keeps the old
-// leaf, the other seven are new leaves with its list and lower bound, and all eight get corner distances 0.
-// The model stays exact: a list and a lower bound that hold for a cell hold for its parts (entry bounds
-// count in finer units there, so they only get lower), and 0 is a true lower bound at any corner. Returns
-// the index of child 0.
+// leaf, the other seven are new leaves with its list and lower bound and corner distances 0. The model
+// stays exact: a list and a lower bound that hold for a cell hold for its parts (entry bounds count in
+// finer units there, so they only get lower), and 0 is a true lower bound at any corner. Returns the
+// index of child 0.
 std::size_t split(CflModel& model, std::size_t node) {
   RegionTree& tree = model.regions;
   const std::uint32_t old_leaf = tree.nodes[node] & ~RegionTree::kLeafBit;
   const std::uint32_t block = static_cast<std::uint32_t>(tree.nodes.size());
   tree.nodes[node] = block;
   tree.nodes.push_back(RegionTree::kLeafBit | old_leaf);
-  tree.leaf_corner_distance[old_leaf] = {};
   for (int c = 1; c < 8; ++c) {
     tree.nodes.push_back(RegionTree::kLeafBit | static_cast<std::uint32_t>(tree.leaf_list.size()));
     tree.leaf_list.push_back(tree.leaf_list[old_leaf]);
@@ -283,14 +276,8 @@ Bytes writeUnchecked(const CflModel& model) {
     out.u64(tree.leaf_list.size());
     for (std::uint32_t list : tree.leaf_list) out.u32(list);
     for (float bound : tree.leaf_lower_bound) out.f32(bound);
-    // The corner codes decoded: the file keeps floats.
-    const std::vector<int> depths = nodeDepths(tree);
-    std::vector<int> leaf_depth(tree.leaf_list.size(), 0);
-    for (std::size_t n = 0; n < tree.nodes.size(); ++n) {
-      if (tree.nodes[n] & RegionTree::kLeafBit) leaf_depth[tree.nodes[n] & ~RegionTree::kLeafBit] = depths[n];
-    }
-    for (std::size_t leaf = 0; leaf < tree.leaf_list.size(); ++leaf) {
-      for (int c = 0; c < 8; ++c) out.f32(tree.cornerDistance(std::uint32_t(leaf), c, leaf_depth[leaf]));
+    for (const auto& corners : tree.leaf_corner_distance) {
+      for (float distance : corners) out.f32(distance);
     }
   });
   section("LIST", [&](ByteWriter& out) {
@@ -1086,7 +1073,7 @@ TEST(CflFile, ExtremeButValidValuesLoadAndQueryWithoutCrashing) {
       CflModel model = *good;
       RegionTree& tree = model.regions;
       for (std::size_t leaf = 0; leaf < tree.leaf_list.size(); ++leaf) {
-        if (variant != 1) tree.leaf_corner_distance[leaf] = LeafCorners{huge, {0xffffffffu, 0xffffffffu, 0xffffffffu}};
+        if (variant != 1) tree.leaf_corner_distance[leaf].fill(huge);
         if (variant != 0) tree.leaf_lower_bound[leaf] = huge;
       }
       if (variant == 2) {  // every entry claims to be far: the lists then go in id order

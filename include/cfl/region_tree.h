@@ -18,25 +18,10 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
-#include <cstring>
 #include <limits>
 #include <vector>
 
 namespace cfl {
-
-/// The distance field at a leaf's eight corners in 16 bytes, one cache line's quarter as the 8 floats of
-/// old were its half: the least distance (rounded down to float) and, per corner, a 12-bit code of how far
-/// above it that corner lies in units of RegionTree::cornerDistanceUnit (1/2048 to 1/1024 of the leaf's edge,
-/// so 4095 units reach at least 1.999 edges; the corners of one leaf differ by at most its diagonal, 1.733
-/// edges, so the codes do not saturate).
-struct LeafCorners {
-  float base = 0;
-  std::uint32_t packed[3] = {0, 0, 0};  ///< Code c in bits [12 c, 12 c + 12) of these 96 bits, low word first.
-  friend bool operator==(const LeafCorners& x, const LeafCorners& y) {
-    return x.base == y.base && x.packed[0] == y.packed[0] && x.packed[1] == y.packed[1] && x.packed[2] == y.packed[2];
-  }
-  friend bool operator!=(const LeafCorners& x, const LeafCorners& y) { return !(x == y); }
-};
 
 /// A leaf found by point location: its index into the leaf arrays, its box and its depth.
 struct RegionCell {
@@ -72,12 +57,11 @@ struct RegionTree {
   /// Per leaf. leaf_list: index of its CFL (lists are shared between leaves whose ids, entry bounds and
   /// depth agree), or kNoList. leaf_lower_bound: a lower bound on the distance from any point of the leaf to the mesh
   /// (0 where the mesh passes through it). leaf_corner_distance: the distance from each of its eight
-  /// corners to the mesh, corner c at min_corner + size (c & 1, (c >> 1) & 1, c >> 2), rounded down, as
-  /// LeafCorners (decodeCorners / cornerDistance read it, encodeCorners writes it): distance to a set is
-  /// 1-Lipschitz, so dist(p, mesh) >= corner distance - |p - corner| for every p.
+  /// corners to the mesh, corner c at min_corner + size (c & 1, (c >> 1) & 1, c >> 2), rounded down to float:
+  /// distance to a set is 1-Lipschitz, so dist(p, mesh) >= corner distance - |p - corner| for every p.
   std::vector<std::uint32_t> leaf_list;
   std::vector<float> leaf_lower_bound;
-  std::vector<LeafCorners> leaf_corner_distance;
+  std::vector<std::array<float, 8>> leaf_corner_distance;
 
   /// CSR storage of the lists: list l is entries [list_offsets[l], list_offsets[l + 1]), bounds in
   /// list_entry_bounds at those indices. Within a list, entries are sorted by (list_entry_bounds, triangle
@@ -109,71 +93,6 @@ struct RegionTree {
     box.min = origin;
     box.max = origin + root_size * Eigen::Vector3d(root_dims[0], root_dims[1], root_dims[2]);
     return box;
-  }
-  /// The unit of the corner codes at a depth: the power of two in (cellSize / 2048, cellSize / 1024], as a
-  /// float, so that code * unit is exact and decoding rounds once.
-  float cornerDistanceUnit(int depth) const {
-    std::uint64_t bits;
-    std::memcpy(&bits, &root_size, sizeof bits);
-    const int exponent = std::clamp(int((bits >> 52) & 0x7ff) - 1023 - depth - 10, -126, 127);
-    const std::uint32_t unit_bits = std::uint32_t(exponent + 127) << 23;
-    float unit;
-    std::memcpy(&unit, &unit_bits, sizeof unit);
-    return unit;
-  }
-  /// Code `corner` (0 to 7) of a leaf's corners.
-  static std::uint32_t cornerCode(const LeafCorners& corners, int corner) {
-    const std::uint64_t low = corners.packed[0] | std::uint64_t(corners.packed[1]) << 32;
-    const std::uint64_t high = corners.packed[1] | std::uint64_t(corners.packed[2]) << 32;
-    const int start = 12 * corner;
-    return std::uint32_t((start + 12 <= 64 ? low >> start : high >> (start - 32)) & 0xfffu);
-  }
-  /// The eight corner distances of a leaf, its codes decoded with `unit` (cornerDistanceUnit of its depth).
-  static void decodeCorners(const LeafCorners& corners, float unit, double out[8]) {
-    const std::uint64_t low = corners.packed[0] | std::uint64_t(corners.packed[1]) << 32;
-    const std::uint64_t high = corners.packed[1] | std::uint64_t(corners.packed[2]) << 32;
-    const std::uint32_t codes[8] = {std::uint32_t(low & 0xfff),         std::uint32_t((low >> 12) & 0xfff),
-                                    std::uint32_t((low >> 24) & 0xfff), std::uint32_t((low >> 36) & 0xfff),
-                                    std::uint32_t((low >> 48) & 0xfff), std::uint32_t((high >> 28) & 0xfff),
-                                    std::uint32_t((high >> 40) & 0xfff), std::uint32_t(high >> 52)};
-    for (int corner = 0; corner < 8; ++corner) out[corner] = corners.base + float(codes[corner]) * unit;
-  }
-  /// The distance field at corner `corner` of leaf `leaf` at depth `depth` (never above the true distance).
-  float cornerDistance(std::uint32_t leaf, int corner, int depth) const {
-    const LeafCorners& corners = leaf_corner_distance[leaf];
-    return corners.base + float(cornerCode(corners, corner)) * cornerDistanceUnit(depth);
-  }
-  /// A leaf's corners at `depth` from their distances: the base is the least distance rounded down to float,
-  /// each code the largest that decodes to no more than its distance. Encoding decoded values gives the same
-  /// codes back when the least code is 0, as for every leaf within 4096 of its edges of the mesh.
-  LeafCorners encodeCorners(int depth, const double distance[8]) const {
-    LeafCorners corners;
-    double least = distance[0];
-    for (int corner = 1; corner < 8; ++corner) least = std::min(least, distance[corner]);
-    float base = least < double(std::numeric_limits<float>::max()) ? float(least) : std::numeric_limits<float>::max();
-    while (double(base) > least && base > 0) base = std::nextafter(base, 0.0f);
-    corners.base = std::max(base, 0.0f);
-    const float unit = cornerDistanceUnit(depth);
-    std::uint64_t bits[2] = {0, 0};  // the 96 bits of the codes, 12 per corner
-    for (int corner = 0; corner < 8; ++corner) {
-      int low = 0, high = 4095;  // the code lies in [low, high]
-      while (low < high) {
-        const int middle = (low + high + 1) / 2;
-        if (double(corners.base + float(middle) * unit) <= distance[corner]) {
-          low = middle;
-        } else {
-          high = middle - 1;
-        }
-      }
-      const int start = 12 * corner;
-      if (start < 64) bits[0] |= std::uint64_t(low) << start;  // the bits past 64 drop out here
-      if (start < 64 && start + 12 > 64) bits[1] |= std::uint64_t(low) >> (64 - start);
-      if (start >= 64) bits[1] |= std::uint64_t(low) << (start - 64);
-    }
-    corners.packed[0] = std::uint32_t(bits[0]);
-    corners.packed[1] = std::uint32_t(bits[0] >> 32);
-    corners.packed[2] = std::uint32_t(bits[1]);
-    return corners;
   }
   bool hasList(std::uint32_t leaf) const { return leaf_list[leaf] != kNoList; }
   std::size_t listCount() const { return list_offsets.empty() ? 0 : list_offsets.size() - 1; }

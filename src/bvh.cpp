@@ -175,7 +175,6 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
     stack.push_back({left + 1, middle, range.end});
     stack.push_back({left, range.begin, middle});
   }
-  bvh.nodes.shrink_to_fit();  // reserved for leaves of one triangle
   return bvh;
 }
 

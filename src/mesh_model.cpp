@@ -47,21 +47,12 @@ Eigen::Vector4d boundingSphere(const std::array<Eigen::Vector3d, 3>& c) {
   return sphere;
 }
 
-// Triangles per Bvh leaf, at most. The query never splits a node of B with 8 triangles or fewer inside A's
-// regions (kSmallSubtreeTriangles), and tests two subtrees of 8 pair by pair (kSmallPairTriangles), so the
-// nodes below were read only on the Bvh-against-Bvh and point paths, and with leaves of one triangle the
-// 2n - 1 nodes of 256 bytes were 512 bytes per triangle, most of the model next to the lists.
-constexpr int kBvhLeafTriangles = 8;
-
 }  // namespace
 
 MeshModel makeMeshModel(TriangleMesh mesh) {
   validateMesh(mesh);
   MeshModel model;
   model.mesh = std::move(mesh);
-  // A mesh read from a file grew by push_back: up to half of its capacity is slack.
-  model.mesh.vertices.shrink_to_fit();
-  model.mesh.triangles.shrink_to_fit();
   model.corners.resize(model.mesh.triangles.size());
   for (std::size_t t = 0; t < model.mesh.triangles.size(); ++t) {
     for (int corner = 0; corner < 3; ++corner) model.corners[t][corner] = model.mesh.vertices[model.mesh.triangles[t][corner]];
@@ -87,7 +78,7 @@ MeshModel makeMeshModel(TriangleMesh mesh) {
       model.planes[t].setZero();
     }
   }
-  model.bvh = buildBvh(model.mesh, kBvhLeafTriangles);
+  model.bvh = buildBvh(model.mesh, 1);
   const std::size_t count = model.bvh.triangle_ids.size();
   model.leaf_corners.resize(count);
   model.leaf_spheres.resize(count);

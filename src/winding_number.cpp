@@ -2,6 +2,8 @@
 
 #include "cfl/mesh_sign.h"
 
+#include <Eigen/Geometry>
+
 #include <cmath>
 
 namespace cfl {

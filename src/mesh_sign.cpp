@@ -5,6 +5,8 @@
 #include "cfl/triangle_distance.h"
 #include "detail/exact_arithmetic.h"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>

@@ -177,7 +177,7 @@ std::int64_t memoryBytes(const MeshSign& sign) {
   return std::int64_t(sign.welded_vertex.capacity() * sizeof(std::int32_t) +
                       sign.neighbors.capacity() * sizeof(std::array<std::int32_t, 3>) +
                       sign.vertex_normals.capacity() * sizeof(Eigen::Vector3d) +
-                      sign.node_dipoles.capacity() * sizeof(WindingDipole) + sign.closure.reason.capacity());
+                      sign.node_dipoles.capacity() * sizeof(WindingDipole));
 }
 
 MeshSign analyzeMeshSign(const MeshModel& model) {

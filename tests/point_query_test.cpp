@@ -174,6 +174,7 @@ TEST(PointQuery, SignsMatchTheWindingNumberOnClosedMeshes) {
       {"tetrahedron", tetrahedron()},
       {"dented cube", cubeWithTopAt(0.4)},
       {"spiked cube", cubeWithTopAt(4.0)},
+      {"bunny", test::loadBunny()},
   };
   test::Rng rng(13);
   for (const NamedMesh& named : meshes) {

@@ -66,7 +66,7 @@ struct WindingDipole {
 /// of the 1/2 that separates inside from outside on the test meshes, for a few more exact triangles.
 constexpr double kWindingFarFactor = 3.0;
 
-/// What signing needs beyond the MeshModel, in frame M. About 300 bytes per triangle, most of it the
+/// What signing needs beyond the MeshModel, in frame M. About 160 bytes per triangle, most of it the
 /// winding number's per-node far field.
 struct MeshSign {
   MeshClosure closure;
@@ -79,8 +79,11 @@ struct MeshSign {
   /// Angle-weighted pseudonormal of each welded vertex (indexed by welded_vertex[v]; unit, oriented outward
   /// using closure.orientation; zero where not defined).
   std::vector<Eigen::Vector3d> vertex_normals;
-  /// node_dipoles[n]: the far field of Bvh node n of the model (used by windingNumber only).
+  /// The far field of the model's inner Bvh nodes (used by windingNumber only): node n's is
+  /// node_dipoles[dipole_index[n]]. Leaves have none (dipole_index -1): one triangle's exact solid angle costs
+  /// about what its expansion would.
   std::vector<WindingDipole> node_dipoles;
+  std::vector<std::int32_t> dipole_index;
 };
 
 /// Bytes the arrays of `sign` hold (capacity).

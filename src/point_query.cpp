@@ -185,9 +185,11 @@ PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM
     result.distance = distance;
     result.triangle = triangle;
     result.closest_point = X_WM * closest_M;
+    // The kernel's distance and closest point round separately: a tiny distance may come with p == q.
     const Eigen::Vector3d offset = p_M - closest_M;
-    const Eigen::Vector3d g_M = distance > 0 ? Eigen::Vector3d(offset / offset.norm())
-                                             : Eigen::Vector3d(model.sign.closure.orientation * unitNormal(model.geometry, triangle));
+    const double length = offset.norm();
+    const Eigen::Vector3d g_M = length > 0 ? Eigen::Vector3d(offset / length)
+                                           : Eigen::Vector3d(model.sign.closure.orientation * unitNormal(model.geometry, triangle));
     result.gradient = X_WM.linear() * g_M;
     return result;
   }
@@ -213,9 +215,10 @@ PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM
   result.triangle = triangle;
   result.closest_point = X_WM * closest_M;
   Eigen::Vector3d g_M = Eigen::Vector3d::Zero();
-  if (distance > 0) {
-    const Eigen::Vector3d offset = p_M - closest_M;
-    g_M = offset / offset.norm();
+  const Eigen::Vector3d offset = p_M - closest_M;
+  const double offset_length = offset.norm();
+  if (offset_length > 0) {
+    g_M = offset / offset_length;
     if (inside) g_M = -g_M;
   } else {
     // On the surface: the outward pseudonormal, which on a mesh that is not closed may be missing or point

@@ -56,6 +56,8 @@ FCL_EXPORT std::size_t collide<double>(const CollisionGeometry<double>* o1, cons
 #include "cfl_fcl/cfl_geometry.h"
 
 #include <cfl/cfl_query.h>
+#include <cfl/penetration.h>
+#include <cfl/point_query.h>
 #include <fcl/geometry/shape/halfspace.h>
 #include <fcl/geometry/shape/plane.h>
 #include <cfl/error.h>
@@ -308,6 +310,45 @@ double planeDistance(const CFLGeometry& c, const Transform& tf_c, const Geometry
   return result.min_distance;
 }
 
+// Both meshes bound solids, so overlap has a depth (cfl/penetration.h); otherwise a signed request is answered
+// as FCL answers it for meshes: 0 on contact.
+bool signable(const CFLGeometry& c1, const CFLGeometry& c2) {
+  return c1.model().sign.closure.closed && c2.model().sign.closure.closed;
+}
+
+// Whether one closed body holds the other without the surfaces meeting (FCL misses this, fcl issue #492):
+// then a vertex of the inner one is inside the outer one.
+bool oneHoldsTheOther(const cfl::CflModel& a, const Transform& tf_a, const cfl::CflModel& b, const Transform& tf_b) {
+  cfl::PointQueryOptions options;
+  options.signed_distance = true;
+  const auto inside = [&](const cfl::CflModel& solid, const Transform& tf_solid, const cfl::CflModel& skin,
+                          const Transform& tf_skin) {
+    const int v = skin.geometry.mesh.triangles.front()[0];
+    return cfl::computePointDistance(solid, tf_solid, tf_skin * skin.geometry.mesh.vertices[v], options).distance < 0;
+  };
+  return inside(a, tf_a, b, tf_b) || inside(b, tf_b, a, tf_a);
+}
+
+// fcl::distance with enable_signed_distance on two closed CFL meshes: the distance when they are apart, minus
+// the penetration depth (cfl::computePenetration, its certified lower end) when they overlap, with the deepest
+// point and its closest point on the other surface as the nearest points.
+double signedDistance(const CFLGeometry& c1, const Transform& tf1, const CFLGeometry& c2, const Transform& tf2,
+                      const fcl::DistanceRequest<double>& request, fcl::DistanceResult<double>& result) {
+  // Under the broadphase's bound a pair that is apart and cannot beat it is dismissed as usual; one body
+  // inside the other has a positive distance between the surfaces, hence the containment test.
+  const cfl::DistanceResult apart = cfl::computeDistance(c1.model(), tf1, c2.model(), tf2, optionsOf(request, result));
+  const bool touching = apart.triangle_a >= 0 && apart.distance == 0;
+  if (!touching && !oneHoldsTheOther(c1.model(), tf1, c2.model(), tf2)) {
+    report(apart, true, &c1, &c2, request, result);
+    return result.min_distance;
+  }
+  const cfl::PenetrationResult p = cfl::computePenetration(c1.model(), tf1, c2.model(), tf2);
+  const Eigen::Vector3d& on_1 = p.deepest_body == 0 ? p.deepest_point : p.surface_point;
+  const Eigen::Vector3d& on_2 = p.deepest_body == 0 ? p.surface_point : p.deepest_point;
+  result.update(-p.depth, &c1, &c2, p.triangle_a, p.triangle_b, on_1, on_2);
+  return result.min_distance;
+}
+
 double distanceImpl(const Geometry* o1, const Transform& tf1, const Owner* owner1, const Geometry* o2,
                     const Transform& tf2, const Owner* owner2, const fcl::DistanceRequest<double>& request,
                     fcl::DistanceResult<double>& result) {
@@ -316,6 +357,7 @@ double distanceImpl(const Geometry* o1, const Transform& tf1, const Owner* owner
   if (request.isSatisfied(result)) return result.min_distance;
   const cfl::DistanceOptions options = optionsOf(request, result);
   if (c1 != nullptr && c2 != nullptr) {
+    if (request.enable_signed_distance && signable(*c1, *c2)) return signedDistance(*c1, tf1, *c2, tf2, request, result);
     // The query is fast where the other mesh lies inside A's grid and falls back to the two Bvhs outside it, so
     // A is the larger model (by bounding-box diagonal), whose grid covers more of the smaller one: a link
     // against a table, a shelf or a boulder. The distance is the same either way; equal sizes keep the
@@ -361,6 +403,39 @@ Eigen::Vector3d contactNormal(const cfl::MeshModel& m1, const Transform& tf1, in
   return towards.dot(n) < 0 ? Eigen::Vector3d(-n) : n;
 }
 
+// fcl::collide on two closed CFL meshes: they collide when the surfaces meet or one body holds the other.
+// With request.enable_contact, the first contact is the penetration (cfl::computePenetration): depth, the
+// normal that separates o2 from o1 (FCL's convention: from o1 to o2), and pos halfway between the deepest
+// point and its closest point on the other surface; the intersecting triangle pairs follow, with the same
+// depth and normal.
+std::size_t collideSolids(const CFLGeometry& c1, const Transform& tf1, const CFLGeometry& c2, const Transform& tf2,
+                          std::size_t budget, const fcl::CollisionRequest<double>& request,
+                          fcl::CollisionResult<double>& result) {
+  const cfl::MeshModel& m1 = c1.model().geometry;
+  const cfl::MeshModel& m2 = c2.model().geometry;
+  std::vector<cfl::Contact> contacts;
+  cfl::computeCollision(m1, tf1, m2, tf2, request.enable_contact ? budget : std::min<std::size_t>(budget, 1),
+                        &contacts);
+  if (contacts.empty() && !oneHoldsTheOther(c1.model(), tf1, c2.model(), tf2)) return result.numContacts();
+  if (!request.enable_contact) {
+    if (contacts.empty()) {
+      result.addContact(fcl::Contact<double>(&c1, &c2, fcl::Contact<double>::NONE, fcl::Contact<double>::NONE));
+      return result.numContacts();
+    }
+    for (const cfl::Contact& k : contacts)
+      result.addContact(fcl::Contact<double>(&c1, &c2, k.triangle_a, k.triangle_b));
+    return result.numContacts();
+  }
+  const cfl::PenetrationResult p = cfl::computePenetration(c1.model(), tf1, c2.model(), tf2);
+  const Eigen::Vector3d normal = p.deepest_body == 0 ? Eigen::Vector3d(-p.normal) : p.normal;
+  result.addContact(fcl::Contact<double>(&c1, &c2, p.triangle_a, p.triangle_b,
+                                         0.5 * (p.deepest_point + p.surface_point), normal, p.depth));
+  for (std::size_t i = 0; i + 1 < budget && i < contacts.size(); ++i)
+    result.addContact(fcl::Contact<double>(&c1, &c2, contacts[i].triangle_a, contacts[i].triangle_b,
+                                           contacts[i].position, normal, p.depth));
+  return result.numContacts();
+}
+
 std::size_t collideImpl(const Geometry* o1, const Transform& tf1, const Owner* owner1, const Geometry* o2,
                         const Transform& tf2, const Owner* owner2, const fcl::CollisionRequest<double>& request,
                         fcl::CollisionResult<double>& result) {
@@ -395,6 +470,8 @@ std::size_t collideImpl(const Geometry* o1, const Transform& tf1, const Owner* o
   }
 
   const std::size_t budget = request.num_max_contacts - std::min(request.num_max_contacts, result.numContacts());
+  if (c1 != nullptr && c2 != nullptr && signable(*c1, *c2))
+    return collideSolids(*c1, tf1, *c2, tf2, budget, request, result);
   std::vector<cfl::Contact> contacts;
   cfl::computeCollision(*m1, tf1, *m2, tf2, budget, &contacts);
   for (const cfl::Contact& k : contacts) {

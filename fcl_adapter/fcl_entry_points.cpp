@@ -316,36 +316,15 @@ bool signable(const CFLGeometry& c1, const CFLGeometry& c2) {
   return c1.model().sign.closure.closed && c2.model().sign.closure.closed;
 }
 
-// Whether one closed body holds the other without the surfaces meeting (FCL misses this, fcl issue #492):
-// then a vertex of the inner one is inside the outer one.
-bool oneHoldsTheOther(const cfl::CflModel& a, const Transform& tf_a, const cfl::CflModel& b, const Transform& tf_b) {
-  cfl::PointQueryOptions options;
-  options.signed_distance = true;
-  const auto inside = [&](const cfl::CflModel& solid, const Transform& tf_solid, const cfl::CflModel& skin,
-                          const Transform& tf_skin) {
-    const int v = skin.geometry.mesh.triangles.front()[0];
-    return cfl::computePointDistance(solid, tf_solid, tf_skin * skin.geometry.mesh.vertices[v], options).distance < 0;
-  };
-  return inside(a, tf_a, b, tf_b) || inside(b, tf_b, a, tf_a);
-}
-
-// fcl::distance with enable_signed_distance on two closed CFL meshes: the distance when they are apart, minus
-// the penetration depth (cfl::computePenetration, its certified lower end) when they overlap, with the deepest
-// point and its closest point on the other surface as the nearest points.
+// fcl::distance with enable_signed_distance on two closed CFL meshes: cfl::computeSignedDistance, the distance
+// when they are apart, minus the penetration depth (its certified lower end) when they overlap, with the
+// deepest point and its closest point on the other surface as the nearest points. Under the broadphase's bound
+// a pair that is apart and cannot beat it is dismissed as usual.
 double signedDistance(const CFLGeometry& c1, const Transform& tf1, const CFLGeometry& c2, const Transform& tf2,
                       const fcl::DistanceRequest<double>& request, fcl::DistanceResult<double>& result) {
-  // Under the broadphase's bound a pair that is apart and cannot beat it is dismissed as usual; one body
-  // inside the other has a positive distance between the surfaces, hence the containment test.
-  const cfl::DistanceResult apart = cfl::computeDistance(c1.model(), tf1, c2.model(), tf2, optionsOf(request, result));
-  const bool touching = apart.triangle_a >= 0 && apart.distance == 0;
-  if (!touching && !oneHoldsTheOther(c1.model(), tf1, c2.model(), tf2)) {
-    report(apart, true, &c1, &c2, request, result);
-    return result.min_distance;
-  }
-  const cfl::PenetrationResult p = cfl::computePenetration(c1.model(), tf1, c2.model(), tf2);
-  const Eigen::Vector3d& on_1 = p.deepest_body == 0 ? p.deepest_point : p.surface_point;
-  const Eigen::Vector3d& on_2 = p.deepest_body == 0 ? p.surface_point : p.deepest_point;
-  result.update(-p.depth, &c1, &c2, p.triangle_a, p.triangle_b, on_1, on_2);
+  const cfl::DistanceResult r =
+      cfl::computeSignedDistance(c1.model(), tf1, c2.model(), tf2, optionsOf(request, result));
+  report(r, true, &c1, &c2, request, result);
   return result.min_distance;
 }
 
@@ -403,36 +382,32 @@ Eigen::Vector3d contactNormal(const cfl::MeshModel& m1, const Transform& tf1, in
   return towards.dot(n) < 0 ? Eigen::Vector3d(-n) : n;
 }
 
-// fcl::collide on two closed CFL meshes: they collide when the surfaces meet or one body holds the other.
-// With request.enable_contact, the first contact is the penetration (cfl::computePenetration): depth, the
-// normal that separates o2 from o1 (FCL's convention: from o1 to o2), and pos halfway between the deepest
-// point and its closest point on the other surface; the intersecting triangle pairs follow, with the same
-// depth and normal.
+// fcl::collide on two closed CFL meshes: they collide when the surfaces meet or one body holds the other (FCL
+// misses the latter, fcl issue #492). With request.enable_contact every contact carries the bodies' penetration
+// (cfl::computePenetration): its depth, and its normal in FCL's convention (from o1 to o2: moving o2 along it
+// separates the deepest point); the contacts stay the intersecting triangle pairs with pos a point of both, as
+// for any mesh pair. When one body holds the other no triangles meet: one contact, at the deepest point, with
+// b1 / b2 the triangles holding it and its closest point.
 std::size_t collideSolids(const CFLGeometry& c1, const Transform& tf1, const CFLGeometry& c2, const Transform& tf2,
                           std::size_t budget, const fcl::CollisionRequest<double>& request,
                           fcl::CollisionResult<double>& result) {
   const cfl::MeshModel& m1 = c1.model().geometry;
   const cfl::MeshModel& m2 = c2.model().geometry;
   std::vector<cfl::Contact> contacts;
-  cfl::computeCollision(m1, tf1, m2, tf2, request.enable_contact ? budget : std::min<std::size_t>(budget, 1),
-                        &contacts);
-  if (contacts.empty() && !oneHoldsTheOther(c1.model(), tf1, c2.model(), tf2)) return result.numContacts();
+  cfl::computeCollision(m1, tf1, m2, tf2, budget, &contacts);
+  if (contacts.empty() && cfl::bodyContainment(c1.model(), tf1, c2.model(), tf2) == 0) return result.numContacts();
   if (!request.enable_contact) {
-    if (contacts.empty()) {
+    if (contacts.empty())
       result.addContact(fcl::Contact<double>(&c1, &c2, fcl::Contact<double>::NONE, fcl::Contact<double>::NONE));
-      return result.numContacts();
-    }
-    for (const cfl::Contact& k : contacts)
-      result.addContact(fcl::Contact<double>(&c1, &c2, k.triangle_a, k.triangle_b));
+    for (const cfl::Contact& k : contacts) result.addContact(fcl::Contact<double>(&c1, &c2, k.triangle_a, k.triangle_b));
     return result.numContacts();
   }
   const cfl::PenetrationResult p = cfl::computePenetration(c1.model(), tf1, c2.model(), tf2);
   const Eigen::Vector3d normal = p.deepest_body == 0 ? Eigen::Vector3d(-p.normal) : p.normal;
-  result.addContact(fcl::Contact<double>(&c1, &c2, p.triangle_a, p.triangle_b,
-                                         0.5 * (p.deepest_point + p.surface_point), normal, p.depth));
-  for (std::size_t i = 0; i + 1 < budget && i < contacts.size(); ++i)
-    result.addContact(fcl::Contact<double>(&c1, &c2, contacts[i].triangle_a, contacts[i].triangle_b,
-                                           contacts[i].position, normal, p.depth));
+  if (contacts.empty())
+    result.addContact(fcl::Contact<double>(&c1, &c2, p.triangle_a, p.triangle_b, p.deepest_point, normal, p.depth));
+  for (const cfl::Contact& k : contacts)
+    result.addContact(fcl::Contact<double>(&c1, &c2, k.triangle_a, k.triangle_b, k.position, normal, p.depth));
   return result.numContacts();
 }
 

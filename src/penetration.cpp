@@ -38,11 +38,13 @@ struct Sample {
 };
 
 // A piece of a skin triangle, with what bounds the depth over it.
+// Either a node of the skin's Bvh (node >= 0: its bounding sphere, corners unused) or a piece of one of its
+// triangles.
 struct Piece {
   double upper = 0;  // bound on the depth of every point of the piece inside the solid
   int direction = 0;
+  int node = -1;
   int skin_triangle = -1;
-  int level = 0;
   Sample corner[3];
   double radius = 0;
 };
@@ -85,7 +87,9 @@ class PenetrationSearch {
     options_.signed_distance = true;
   }
 
-  Sample sample(int direction, const Eigen::Vector3d& p) {
+  // The signed distance at p, a point of skin triangle `skin_triangle`, or of no triangle when it is -1 (a
+  // Bvh node's center): only points of the skin can be the deepest point.
+  Sample sample(int direction, const Eigen::Vector3d& p, int skin_triangle) {
     ++evaluations_;
     const Direction& d = directions_[direction];
     const PointDistance r = computePointDistance(*d.solid, Eigen::Isometry3d::Identity(), p, options_);
@@ -94,7 +98,7 @@ class PenetrationSearch {
     s.signed_distance = r.distance;
     s.closest = r.closest_point;
     s.triangle = r.triangle;
-    noteDepth(direction, -1, s);
+    if (skin_triangle >= 0) noteDepth(direction, skin_triangle, s);
     return s;
   }
 
@@ -114,7 +118,7 @@ class PenetrationSearch {
   // the triangles closest to the corners are the candidates. The signed distance is 1-Lipschitz, which bounds
   // the depth by the center's depth plus the radius, and shows a piece wholly outside when the center is
   // farther out than the radius.
-  bool bound(Piece& piece, const Sample* center) const {
+  bool bound(Piece& piece, const Sample& center) const {
     const Direction& d = directions_[piece.direction];
     const auto& corners = d.solid->geometry.corners;
     double convex = kInfinity;
@@ -127,12 +131,9 @@ class PenetrationSearch {
         worst = std::max(worst, pointTriangleSquaredDistance(piece.corner[j].p, c[0], c[1], c[2]));
       convex = std::min(convex, std::sqrt(worst));
     }
-    double upper = convex;
-    if (center != nullptr) {
-      if (center->signed_distance >= piece.radius) return false;
-      upper = std::min(upper, -center->signed_distance + piece.radius);
-    }
-    piece.upper = upper;
+    if (center.signed_distance >= piece.radius) return false;
+    piece.upper = std::min(convex, piece.radius - center.signed_distance);
+    const double upper = piece.upper;
     return upper > 0;
   }
 
@@ -145,7 +146,7 @@ class PenetrationSearch {
   void split(const Piece& piece) {
     Sample mid[3];
     for (int k = 0; k < 3; ++k)
-      mid[k] = sample(piece.direction, 0.5 * (piece.corner[k].p + piece.corner[(k + 1) % 3].p));
+      mid[k] = sample(piece.direction, 0.5 * (piece.corner[k].p + piece.corner[(k + 1) % 3].p), piece.skin_triangle);
     const Sample* children[4][3] = {{&piece.corner[0], &mid[0], &mid[2]},
                                     {&mid[0], &piece.corner[1], &mid[1]},
                                     {&mid[2], &mid[1], &piece.corner[2]},
@@ -154,21 +155,71 @@ class PenetrationSearch {
       Piece child;
       child.direction = piece.direction;
       child.skin_triangle = piece.skin_triangle;
-      child.level = piece.level + 1;
-      for (int k = 0; k < 3; ++k) {
-        child.corner[k] = *child_corners[k];
-        noteDepthOf(child, k);
-      }
+      for (int k = 0; k < 3; ++k) child.corner[k] = *child_corners[k];
       Eigen::Vector3d center;
       smallestBall(child.corner[0].p, child.corner[1].p, child.corner[2].p, center, child.radius);
-      Sample c = sample(child.direction, center);
-      noteDepthOfSample(child, c);
-      if (bound(child, &c)) push(std::move(child));
+      const Sample c = sample(child.direction, center, child.skin_triangle);
+      if (bound(child, c)) push(std::move(child));
     }
   }
 
-  void noteDepthOf(const Piece& piece, int k) { noteDepth(piece.direction, piece.skin_triangle, piece.corner[k]); }
-  void noteDepthOfSample(const Piece& piece, const Sample& s) { noteDepth(piece.direction, piece.skin_triangle, s); }
+  // Queues the root of a skin's Bvh.
+  void start(int direction) {
+    const Direction& d = directions_[direction];
+    if (d.skin->geometry.bvh.nodes.empty()) return;
+    vertex_samples_[direction].assign(d.skin->geometry.mesh.vertices.size(), Sample{});
+    pushNode(direction, 0);
+  }
+
+  // A Bvh node of the skin: every point of it lies within its sphere (center c, radius r), and the signed
+  // distance is 1-Lipschitz, so no point of it is deeper than -sd(c) + r, and none is inside when
+  // sd(c) >= r.
+  void pushNode(int direction, int index) {
+    const Direction& d = directions_[direction];
+    const BvhNode& node = d.skin->geometry.bvh.nodes[index];
+    const Sample c = sample(direction, d.X_SolidSkin * node.center, -1);
+    if (c.signed_distance >= node.radius) return;
+    Piece piece;
+    piece.direction = direction;
+    piece.node = index;
+    piece.radius = node.radius;
+    piece.upper = node.radius - c.signed_distance;
+    push(std::move(piece));
+  }
+
+  // The corners of the skin's triangles are shared: each vertex is sampled once per direction (as a point
+  // of the first triangle met that has it).
+  const Sample& vertexSample(int direction, int v, int skin_triangle) {
+    Sample& s = vertex_samples_[direction][v];
+    if (s.triangle < 0) {
+      const Direction& d = directions_[direction];
+      s = sample(direction, d.X_SolidSkin * d.skin->geometry.mesh.vertices[v], skin_triangle);
+    }
+    return s;
+  }
+
+  void expand(const Piece& piece) {
+    const Direction& d = directions_[piece.direction];
+    const MeshModel& skin = d.skin->geometry;
+    const BvhNode& node = skin.bvh.nodes[piece.node];
+    if (!node.isLeaf()) {
+      pushNode(piece.direction, node.first);
+      pushNode(piece.direction, node.first + 1);
+      return;
+    }
+    for (int i = node.first; i < node.first + node.count; ++i) {
+      const int t = skin.bvh.triangle_ids[i];
+      Piece triangle;
+      triangle.direction = piece.direction;
+      triangle.skin_triangle = t;
+      for (int k = 0; k < 3; ++k) triangle.corner[k] = vertexSample(piece.direction, skin.mesh.triangles[t][k], t);
+      Eigen::Vector3d center;
+      smallestBall(triangle.corner[0].p, triangle.corner[1].p, triangle.corner[2].p, center, triangle.radius);
+      const Sample c = sample(piece.direction, center, t);
+      if (bound(triangle, c)) push(std::move(triangle));
+    }
+  }
+
 
   // Runs the branch and bound; returns the certified upper end.
   double run(double smallest_radius) {
@@ -179,11 +230,12 @@ class PenetrationSearch {
       Piece piece = queue_.top();
       queue_.pop();
       if (piece.upper <= best_) continue;
-      if (piece.radius <= smallest_radius || evaluations_ > kMostEvaluations) {
+      if (piece.node < 0 && (piece.radius <= smallest_radius || evaluations_ > kMostEvaluations)) {
         settled = std::max(settled, piece.upper);
         continue;
       }
-      split(piece);
+      if (piece.node >= 0) expand(piece);
+      else split(piece);
     }
     return std::max(best_, settled);
   }
@@ -192,7 +244,6 @@ class PenetrationSearch {
   int bestDirection() const { return best_direction_; }
   const Sample& bestSample() const { return best_sample_; }
   int bestSkinTriangle() const { return best_skin_triangle_; }
-  void setBestSkinTriangle(int t) { best_skin_triangle_ = t; }
 
  private:
   const Direction* directions_;
@@ -204,20 +255,13 @@ class PenetrationSearch {
   Sample best_sample_;
   int best_skin_triangle_ = -1;
   std::int64_t evaluations_ = 0;
+  std::vector<Sample> vertex_samples_[2];
 };
 
 void requireClosed(const CflModel& model, const char* name) {
   if (!model.sign.closure.closed)
-    throw Error(std::string("computePenetration: mesh ") + name +
-                " does not bound a solid, so no point is inside it: " + model.sign.closure.reason);
-}
-
-// The skin triangle holding point p (frame of the solid) among the triangles of the piece's skin: the one
-// the search started from when known, else the nearest one.
-int skinTriangleOf(const CflModel& skin, const Eigen::Isometry3d& X_SolidSkin, const Eigen::Vector3d& p_Solid) {
-  const Eigen::Vector3d p_Skin = X_SolidSkin.inverse() * p_Solid;
-  const PointDistance r = computePointDistance(skin, Eigen::Isometry3d::Identity(), p_Skin);
-  return r.triangle;
+    throw Error(std::string("mesh ") + name + " does not bound a solid, so it has no inside and no depth: " +
+                model.sign.closure.reason);
 }
 
 }  // namespace
@@ -237,76 +281,23 @@ PenetrationResult computePenetration(const CflModel& a, const Eigen::Isometry3d&
   const double diagonal = std::max(a.geometry.bounds.diagonal(), b.geometry.bounds.diagonal());
   const double tolerance = options.tolerance > 0 ? options.tolerance : 1e-4 * diagonal;
 
-  // Which triangles of each surface meet the other surface: the others lie wholly inside or wholly outside
-  // the other body, which one corner's sign tells.
+  // Whether the surfaces meet; with closed surfaces that do not, the bodies overlap only when one holds
+  // the other, which one vertex of each tells.
   std::vector<Contact> contacts;
-  computeCollision(a.geometry, X_WA, b.geometry, X_WB, std::numeric_limits<std::size_t>::max(), &contacts);
-  std::vector<char> crossing[2];  // [0]: B's triangles (skin of direction 0), [1]: A's
-  crossing[0].assign(b.geometry.corners.size(), 0);
-  crossing[1].assign(a.geometry.corners.size(), 0);
-  for (const Contact& c : contacts) {
-    crossing[0][c.triangle_b] = 1;
-    crossing[1][c.triangle_a] = 1;
-  }
-
+  computeCollision(a.geometry, X_WA, b.geometry, X_WB, 1, &contacts);
   const Direction directions[2] = {{&a, &b, X_WA.inverse() * X_WB, X_WA}, {&b, &a, X_WB.inverse() * X_WA, X_WB}};
   PenetrationSearch search(directions, tolerance);
-  bool inside_vertex[2] = {false, false};  // some skin vertex lies inside the solid
-  for (int direction = 0; direction < 2; ++direction) {
-    const Direction& d = directions[direction];
-    const MeshModel& skin = d.skin->geometry;
-    const Aabb solid_box = d.solid->geometry.bounds;
-    // Signed distance at every vertex a triangle uses that can be inside the solid (inside its box).
-    std::vector<Sample> at_vertex(skin.mesh.vertices.size());
-    std::vector<char> evaluated(skin.mesh.vertices.size(), 0);
-    for (std::size_t t = 0; t < skin.corners.size(); ++t) {
-      const std::array<int, 3>& tri = skin.mesh.triangles[t];
-      Piece piece;
-      piece.direction = direction;
-      piece.skin_triangle = int(t);
-      Aabb box;
-      for (int k = 0; k < 3; ++k) box.extend(d.X_SolidSkin * skin.corners[t][k]);
-      const bool may_be_inside = (box.max.array() >= solid_box.min.array()).all() &&
-                                 (box.min.array() <= solid_box.max.array()).all();
-      if (!may_be_inside) continue;
-      for (int k = 0; k < 3; ++k) {
-        const int v = tri[k];
-        if (!evaluated[v]) {
-          at_vertex[v] = search.sample(direction, d.X_SolidSkin * skin.mesh.vertices[v]);
-          evaluated[v] = 1;
-        }
-        piece.corner[k] = at_vertex[v];
-        if (piece.corner[k].signed_distance < 0) inside_vertex[direction] = true;
-      }
-      if (!crossing[direction][t]) {
-        // Wholly on one side of the solid's surface: skip it when outside.
-        if (piece.corner[0].signed_distance > 0 || piece.corner[1].signed_distance > 0 ||
-            piece.corner[2].signed_distance > 0)
-          continue;
-        Eigen::Vector3d center;
-        smallestBall(piece.corner[0].p, piece.corner[1].p, piece.corner[2].p, center, piece.radius);
-        if (search.bound(piece, nullptr)) search.push(std::move(piece));
-        continue;
-      }
-      Eigen::Vector3d center;
-      smallestBall(piece.corner[0].p, piece.corner[1].p, piece.corner[2].p, center, piece.radius);
-      const Sample c = search.sample(direction, center);
-      if (search.bound(piece, &c)) search.push(std::move(piece));
-    }
+  PenetrationResult result;
+  if (contacts.empty()) {
+    result.contained = bodyContainment(a, X_WA, b, X_WB);
+    if (result.contained == 0) return result;
   }
+  result.overlapping = true;
+  for (int direction = 0; direction < 2; ++direction) search.start(direction);
   // Pieces smaller than this are not split: the interval then stays as wide as their bounds (certified still).
   const double smallest_radius = 1e-9 * diagonal;
   const double upper = search.run(smallest_radius);
 
-  PenetrationResult result;
-  const bool surfaces_meet = !contacts.empty();
-  if (!surfaces_meet) {
-    // No triangle crosses: one body holds the other exactly when one of its vertices is inside the other.
-    if (inside_vertex[0]) result.contained = 1;        // B's surface inside A
-    else if (inside_vertex[1]) result.contained = 2;   // A's surface inside B
-  }
-  result.overlapping = surfaces_meet || result.contained != 0;
-  if (!result.overlapping) return result;
   result.depth = search.best();
   result.depth_upper = std::max(upper, result.depth);
   const int direction = search.bestDirection();
@@ -333,7 +324,7 @@ PenetrationResult computePenetration(const CflModel& a, const Eigen::Isometry3d&
                                                   PointQueryOptions{true, SignMethod::kAuto});
     result.normal = at.gradient;
   }
-  const int skin_triangle = skinTriangleOf(*d.skin, d.X_SolidSkin, s.p);
+  const int skin_triangle = search.bestSkinTriangle();
   if (direction == 0) {
     result.triangle_a = s.triangle;
     result.triangle_b = skin_triangle;
@@ -341,6 +332,40 @@ PenetrationResult computePenetration(const CflModel& a, const Eigen::Isometry3d&
     result.triangle_b = s.triangle;
     result.triangle_a = skin_triangle;
   }
+  return result;
+}
+
+int bodyContainment(const CflModel& a, const Eigen::Isometry3d& X_WA, const CflModel& b,
+                    const Eigen::Isometry3d& X_WB) {
+  requireClosed(a, "A");
+  requireClosed(b, "B");
+  PointQueryOptions signed_query;
+  signed_query.signed_distance = true;
+  const auto inside = [&](const CflModel& solid, const Eigen::Isometry3d& X_WSolid, const CflModel& skin,
+                          const Eigen::Isometry3d& X_WSkin) {
+    const int v = skin.geometry.mesh.triangles.front()[0];
+    return computePointDistance(solid, X_WSolid, X_WSkin * skin.geometry.mesh.vertices[v], signed_query).distance < 0;
+  };
+  if (inside(a, X_WA, b, X_WB)) return 1;
+  if (inside(b, X_WB, a, X_WA)) return 2;
+  return 0;
+}
+
+DistanceResult computeSignedDistance(const CflModel& a, const Eigen::Isometry3d& X_WA, const CflModel& b,
+                                     const Eigen::Isometry3d& X_WB, const DistanceOptions& options,
+                                     const PenetrationOptions& penetration) {
+  requireClosed(a, "A");
+  requireClosed(b, "B");
+  const DistanceResult apart = computeDistance(a, X_WA, b, X_WB, options);
+  const bool touching = apart.triangle_a >= 0 && apart.distance == 0;
+  if (!touching && bodyContainment(a, X_WA, b, X_WB) == 0) return apart;
+  const PenetrationResult p = computePenetration(a, X_WA, b, X_WB, penetration);
+  DistanceResult result;
+  result.distance = -p.depth;
+  result.point_a = p.deepest_body == 0 ? p.deepest_point : p.surface_point;
+  result.point_b = p.deepest_body == 0 ? p.surface_point : p.deepest_point;
+  result.triangle_a = p.triangle_a;
+  result.triangle_b = p.triangle_b;
   return result;
 }
 

@@ -167,6 +167,18 @@ void expectWitnessesConsistent(const TriangleMesh& ma, const Eigen::Isometry3d& 
   EXPECT_NEAR((r.surface_point - r.deepest_point).norm(), r.depth, tolerance);
   if (r.depth > tolerance) EXPECT_GT(std::abs(referenceWindingNumber(other, X_other, r.deepest_point)), 0.5);
   EXPECT_NEAR(r.normal.norm(), 1.0, 1e-9);
+  // The reported triangles hold the two points.
+  const int own_triangle = r.deepest_body == 0 ? r.triangle_a : r.triangle_b;
+  const int other_triangle = r.deepest_body == 0 ? r.triangle_b : r.triangle_a;
+  ASSERT_GE(own_triangle, 0);
+  ASSERT_GE(other_triangle, 0);
+  const auto on = [](const TriangleMesh& m, const Eigen::Isometry3d& X, int t, const Eigen::Vector3d& p) {
+    const auto& v = m.triangles[t];
+    return std::sqrt(test::referencePointTriangleSquaredDistance(X.inverse() * p, m.vertices[v[0]], m.vertices[v[1]],
+                                                                 m.vertices[v[2]]));
+  };
+  EXPECT_LE(on(own, X_own, own_triangle, r.deepest_point), tolerance);
+  EXPECT_LE(on(other, X_other, other_triangle, r.surface_point), tolerance);
 }
 
 TEST(Penetration, AxisAlignedBoxesMatchTheExactDefinition) {
@@ -264,15 +276,19 @@ TEST(Penetration, ABoxWhollyInsideAnotherIsContained) {
   EXPECT_NEAR(s.depth, 0.45, 1e-9);
 }
 
-TEST(Penetration, TessellatedBallsApproachTheTranslationalDepth) {
-  // Unit balls whose centers are s apart overlap by 2 - s, the translational depth, which the definition
-  // equals for balls; the tessellation moves the surfaces inwards by at most the sagitta.
+TEST(Penetration, TessellatedBallsMatchTheClosedForm) {
+  // Unit balls whose centers are s apart. While each center is outside the other ball (s >= 1), the deepest
+  // point of either surface is the one nearest the other's center, s - 1 from it, so the depth is 2 - s: the
+  // translational depth. Deeper (s < 1) it is 1 - (1 - s) = s, below the translational 2 - s: the definition
+  // is a lower bound. The tessellation moves the surfaces inwards by at most its sagitta.
   const TriangleMesh m = makeIcosphere(4);
   const CflModel a = build(m), b = build(m);
   const double sagitta = 0.003;
-  for (double s : {0.5, 1.2, 1.9}) {
+  for (double s : {0.5, 0.8, 1.2, 1.9}) {
     const PenetrationResult r = computePenetration(a, Eigen::Isometry3d::Identity(), b, translation(0, s, 0));
-    EXPECT_NEAR(r.depth, 2 - s, 2 * sagitta) << s;
+    const double expected = s >= 1 ? 2 - s : s;
+    EXPECT_NEAR(r.depth, expected, 2 * sagitta) << s;
+    EXPECT_LE(r.depth, 2 - s + 1e-12) << s;
   }
 }
 
@@ -318,6 +334,40 @@ TEST(Penetration, NonConvexMeshesAreNeverShallowerThanASampling) {
       EXPECT_GE(checked, 2) << ma.name << " / " << mb.name;
     }
   }
+}
+
+TEST(Penetration, SignedDistanceIsTheDistanceApartAndMinusTheDepthInside) {
+  const TriangleMesh m = test::makeTorus(1.0, 0.35, 24, 12);
+  const CflModel a = build(m), b = build(m);
+  Rng rng(17);
+  int apart = 0, overlapping = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    const Eigen::Isometry3d X_WA = test::randomPose(rng, 0.3), X_WB = test::randomPose(rng, 1.5);
+    const DistanceResult r = computeSignedDistance(a, X_WA, b, X_WB);
+    const double unsigned_distance = bruteForceDistance(a.geometry, X_WA, b.geometry, X_WB).distance;
+    if (unsigned_distance > 0) {
+      ++apart;
+      EXPECT_NEAR(r.distance, unsigned_distance, 1e-12) << trial;
+      EXPECT_EQ(bodyContainment(a, X_WA, b, X_WB), 0) << trial;  // tori of one size cannot hold each other
+    } else {
+      ++overlapping;
+      const PenetrationResult p = computePenetration(a, X_WA, b, X_WB);
+      EXPECT_EQ(r.distance, -p.depth) << trial;
+      EXPECT_LT(r.distance, 0) << trial;
+      EXPECT_NEAR((r.point_a - r.point_b).norm(), p.depth, 1e-9) << trial;
+      EXPECT_LE(test::referencePointMeshDistance(m, r.point_a, X_WA), 1e-9) << trial;
+      EXPECT_LE(test::referencePointMeshDistance(m, r.point_b, X_WB), 1e-9) << trial;
+    }
+  }
+  EXPECT_GE(apart, 5);
+  EXPECT_GE(overlapping, 5);
+  // Nested boxes: the surfaces are apart, the bodies are not.
+  const CflModel outer = build(test::makeBox(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 1, 1)));
+  const CflModel inner = build(test::makeBox(Eigen::Vector3d(0.3, 0.3, 0.3), Eigen::Vector3d(0.6, 0.6, 0.6)));
+  const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
+  EXPECT_EQ(bodyContainment(outer, I, inner, I), 1);
+  EXPECT_EQ(bodyContainment(inner, I, outer, I), 2);
+  EXPECT_NEAR(computeSignedDistance(outer, I, inner, I).distance, -0.4, 1e-9);  // inner's faces x, y, z = 0.6
 }
 
 TEST(Penetration, SeparatedMeshesHaveNoDepth) {

@@ -85,6 +85,31 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       }
       return;
     }
+    // No list: the Bvh answers. The leaf's corner distances promise a triangle within (corner distance +
+    // |p - corner|) of p, distance being 1-Lipschitz; seeded with that, the walk skips every node farther,
+    // which for a point deep inside a solid or far above a flat part is most of the tree. The corner
+    // distances are rounded down to float: inflated by far more than a float's rounding, the promise holds.
+    const std::array<float, 8>& corner_distance = regions.leaf_corner_distance[cell.leaf];
+    double promise = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d corner =
+          cell.min_corner + cell.size * Eigen::Vector3d(double(c & 1), double((c >> 1) & 1), double(c >> 2));
+      promise = std::min(promise, double(corner_distance[c]) * (1 + 1e-6) + (p_M - corner).norm());
+    }
+    promise *= 1 + 1e-9;
+    if (promise * promise < best_squared) {
+      double found_squared = promise * promise;
+      int found = -1;
+      Eigen::Vector3d q;
+      detail::nearestTriangle(model.geometry, p_M, found_squared, found, &q);
+      if (found >= 0) {
+        best_squared = found_squared;
+        best_triangle = found;
+        closest = q;
+        return;
+      }
+      // Unreachable unless a corner distance were wrong: the unseeded walk below stays exact regardless.
+    }
   }
   detail::nearestTriangle(model.geometry, p_M, best_squared, best_triangle, &closest);
 }

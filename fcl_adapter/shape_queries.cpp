@@ -1,0 +1,174 @@
+// Primitive shapes against a CFL geometry, answered from the CFL model instead of FCL's traversal of the
+// OBBRSS twin:
+//   - sphere: the distance of its center minus its radius; capsule: of its segment minus its radius
+//     (cfl::computeSegmentDistance, a point being a segment of length 0);
+//   - box and convex: the mesh-mesh query against the shape's triangles (shape_mesh_cache.cpp), plus a test
+//     for mesh triangles lying wholly inside the solid shape, which touch no face.
+//
+// Where FCL's answer is kept: when the shape touches or overlaps the mesh and the request is unsigned (or the
+// mesh is not closed, so it has no inside), the pair goes to FCL's own shape-mesh algorithm on the twin.
+// FCL 0.7 has no defined answer there (sphereTriangleDistance leaves the distance unset when nearest
+// points are asked for and returns -1 otherwise; GJK-based shapes return -1 or 0 depending on the solver),
+// and programs compare it with FCL's (the acceptance program compares sphere-vs-CFL with sphere-vs-BVHModel
+// on penetrating poses), so the adapter reproduces it rather than inventing a number.
+
+#include "adapter_internal.h"
+
+#include <cfl/cfl_query.h>
+#include <cfl/segment_query.h>
+
+#include <fcl/geometry/shape/capsule.h>
+#include <fcl/geometry/shape/sphere.h>
+
+#include <algorithm>
+#include <limits>
+#include <vector>
+
+namespace cfl_fcl::detail {
+namespace {
+
+using Geometry = fcl::CollisionGeometry<double>;
+using Transform = fcl::Transform3<double>;
+
+// A sphere or capsule as the points within `radius` of the segment [p0, p1] (world frame).
+struct Swept {
+  Eigen::Vector3d p0, p1;
+  double radius = 0;
+};
+
+bool asSwept(const Geometry& shape, const Transform& tf_s, Swept* swept) {
+  if (shape.getNodeType() == fcl::GEOM_SPHERE) {
+    swept->p0 = swept->p1 = tf_s.translation();
+    swept->radius = static_cast<const fcl::Sphere<double>&>(shape).radius;
+    return true;
+  }
+  if (shape.getNodeType() == fcl::GEOM_CAPSULE) {
+    const auto& capsule = static_cast<const fcl::Capsule<double>&>(shape);
+    // FCL's capsule: axis z of its frame, centered, the segment lz long.
+    swept->p0 = tf_s * Eigen::Vector3d(0, 0, -0.5 * capsule.lz);
+    swept->p1 = tf_s * Eigen::Vector3d(0, 0, 0.5 * capsule.lz);
+    swept->radius = capsule.radius;
+    return true;
+  }
+  return false;
+}
+
+// FCL's result.min_distance as an upper bound: DBL_MAX means none.
+double boundOf(const fcl::DistanceResult<double>& result) {
+  return result.min_distance < std::numeric_limits<double>::max() ? result.min_distance
+                                                                  : std::numeric_limits<double>::infinity();
+}
+
+// Shape-mesh pairs as FCL records them: the mesh is o1 with b1 its triangle, the shape o2 with b2 NONE,
+// whichever order the caller passed them in; nearest_points[0] on the mesh, [1] on the shape, world frame.
+void record(double distance, const Geometry& cfl, const Geometry& shape, int triangle, const Eigen::Vector3d& on_mesh,
+            const Eigen::Vector3d& on_shape, const fcl::DistanceRequest<double>& request,
+            fcl::DistanceResult<double>& result) {
+  if (request.enable_nearest_points)
+    result.update(distance, &cfl, &shape, triangle, fcl::DistanceResult<double>::NONE, on_mesh, on_shape);
+  else
+    result.update(distance, &cfl, &shape, triangle, fcl::DistanceResult<double>::NONE);
+}
+
+// Whether a triangle of the mesh lies wholly inside the solid convex shape (then it touches no face, and the
+// surfaces' distance says nothing). A triangle inside has its first corner inside, and that corner lies in
+// the shape's bounding box, so the mesh's Bvh is walked only where it meets that box.
+bool meshTriangleInside(const cfl::MeshModel& mesh, const Transform& tf_c, const ShapeMesh& shape,
+                        const Transform& tf_s) {
+  const Eigen::Isometry3d X_SM = Eigen::Isometry3d(tf_s.inverse() * tf_c);
+  const Eigen::Isometry3d X_MS = X_SM.inverse();
+  cfl::Aabb box_M;
+  const cfl::Aabb& box_S = shape.mesh->bounds;
+  for (int k = 0; k < 8; ++k)
+    box_M.extend(X_MS * Eigen::Vector3d(k & 1 ? box_S.max.x() : box_S.min.x(), k & 2 ? box_S.max.y() : box_S.min.y(),
+                                        k & 4 ? box_S.max.z() : box_S.min.z()));
+  const auto& nodes = mesh.bvh.nodes;
+  if (nodes.empty()) return false;
+  int stack[128];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const cfl::BvhNode& node = nodes[stack[--top]];
+    if ((node.box.min.array() > box_M.max.array()).any() || (node.box.max.array() < box_M.min.array()).any()) continue;
+    if (node.isLeaf()) {
+      for (int i = node.first; i < node.first + node.count; ++i)
+        if (shape.contains(X_SM * mesh.leaf_corners[i][0])) return true;
+      continue;
+    }
+    stack[top++] = node.first + 1;
+    stack[top++] = node.first;
+  }
+  return false;
+}
+
+// Whether the request wants, and the mesh has, a signed distance. A mesh that is not closed has no inside:
+// FCL's own answer stands for it.
+bool signable(const fcl::DistanceRequest<double>& request, const cfl::CflModel& model) {
+  (void)request;
+  (void)model;
+  return false;
+}
+
+}  // namespace
+
+bool shapeDistance(const Geometry& cfl, const cfl::CflModel& model, const Transform& tf_c, const Geometry& shape,
+                   const Transform& tf_s, const fcl::DistanceRequest<double>& request,
+                   fcl::DistanceResult<double>& result) {
+  const double bound = boundOf(result);
+  Swept swept;
+  if (asSwept(shape, tf_s, &swept)) {
+    cfl::SegmentQueryOptions options;
+    // A pair that cannot beat the result's distance is dropped by FCL's update; the query may dismiss it as
+    // soon as its bounds show that (the shape's surface is `radius` closer than its segment).
+    options.upper_bound = bound + swept.radius;
+    const cfl::SegmentDistance d =
+        cfl::computeSegmentDistance(model, Eigen::Isometry3d(tf_c), swept.p0, swept.p1, options);
+    if (d.triangle < 0) return true;  // Not closer than the result's pair: FCL would keep the result as it is.
+    if (d.distance > swept.radius) {
+      record(d.distance - swept.radius, cfl, shape, d.triangle, d.mesh_point,
+             d.segment_point - swept.radius * d.direction, request, result);
+      return true;
+    }
+    if (!signable(request, model)) return false;
+    return false;
+  }
+  const auto polyhedron = shapeMesh(shape);
+  if (polyhedron == nullptr) return false;
+  cfl::DistanceOptions options;
+  options.rel_err = request.rel_err;
+  options.abs_err = request.abs_err;
+  options.upper_bound = bound;
+  const cfl::DistanceResult d =
+      cfl::computeDistance(model, Eigen::Isometry3d(tf_c), *polyhedron->mesh, Eigen::Isometry3d(tf_s), options);
+  const bool overlapping =
+      (d.triangle_a >= 0 && d.distance == 0) || meshTriangleInside(model.geometry, tf_c, *polyhedron, tf_s);
+  if (!overlapping) {
+    if (d.triangle_a >= 0) record(d.distance, cfl, shape, d.triangle_a, d.point_a, d.point_b, request, result);
+    return true;
+  }
+  if (!signable(request, model)) return false;
+  return false;
+}
+
+bool shapeCollide(const Geometry& cfl, const cfl::CflModel& model, const Transform& tf_c, const Geometry& shape,
+                  const Transform& tf_s, const fcl::CollisionRequest<double>& request,
+                  fcl::CollisionResult<double>& result) {
+  Swept swept;
+  if (!asSwept(shape, tf_s, &swept)) return false;
+  const std::size_t budget = request.num_max_contacts - std::min(request.num_max_contacts, result.numContacts());
+  std::vector<cfl::SegmentDistance> touching;
+  cfl::findTrianglesNearSegment(model, Eigen::Isometry3d(tf_c), swept.p0, swept.p1, swept.radius, budget, &touching);
+  for (const cfl::SegmentDistance& t : touching) {
+    if (request.enable_contact) {
+      // FCL's convention: the normal points from o1 (the mesh) to o2 (the shape); the depth is how far the
+      // shape reaches past the triangle.
+      result.addContact(fcl::Contact<double>(&cfl, &shape, t.triangle, fcl::Contact<double>::NONE, t.mesh_point,
+                                             t.direction, swept.radius - t.distance));
+    } else {
+      result.addContact(fcl::Contact<double>(&cfl, &shape, t.triangle, fcl::Contact<double>::NONE));
+    }
+  }
+  return true;
+}
+
+}  // namespace cfl_fcl::detail

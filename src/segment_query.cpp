@@ -1,0 +1,230 @@
+#include "cfl/segment_query.h"
+
+#include "cfl/cfl_query.h"
+#include "cfl/error.h"
+#include "cfl/triangle_distance.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace cfl {
+
+double segmentTriangleSquaredDistance(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Eigen::Vector3d& a,
+                                      const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                                      Eigen::Vector3d* closest_segment, Eigen::Vector3d* closest_triangle) {
+  // When the segment misses the triangle, a closest pair has a segment end or a triangle edge in it (if both
+  // points were interior, the gap would be normal to the segment and to the plane, so sliding along the
+  // segment keeps it until an end or an edge is reached). When it crosses the plane inside the triangle,
+  // the crossing point is at distance 0 (rounding may leave it a hair outside, hence the point-triangle
+  // distance of the crossing rather than a barycentric test).
+  Eigen::Vector3d s, t;
+  double best = pointTriangleSquaredDistance(p0, a, b, c, &t);
+  s = p0;
+  Eigen::Vector3d q;
+  double d = pointTriangleSquaredDistance(p1, a, b, c, &q);
+  if (d < best) {
+    best = d;
+    s = p1;
+    t = q;
+  }
+  const Eigen::Vector3d* corners[3] = {&a, &b, &c};
+  for (int k = 0; k < 3 && best > 0; ++k) {
+    Eigen::Vector3d on_segment, on_edge;
+    d = segmentSegmentSquaredDistance(p0, p1, *corners[k], *corners[(k + 1) % 3], &on_segment, &on_edge);
+    if (d < best) {
+      best = d;
+      s = on_segment;
+      t = on_edge;
+    }
+  }
+  if (best > 0) {
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    const double s0 = n.dot(p0 - a), s1 = n.dot(p1 - a);
+    if ((s0 > 0 && s1 < 0) || (s0 < 0 && s1 > 0)) {
+      const Eigen::Vector3d x = p0 + (s0 / (s0 - s1)) * (p1 - p0);
+      d = pointTriangleSquaredDistance(x, a, b, c, &q);
+      if (d < best) {
+        best = d;
+        s = x;
+        t = q;
+      }
+    }
+  }
+  if (closest_segment) *closest_segment = s;
+  if (closest_triangle) *closest_triangle = t;
+  return best;
+}
+
+namespace {
+
+double pointSegmentSquaredDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& ab,
+                                   double ab_squared) {
+  double t = ab_squared > 0 ? (p - a).dot(ab) / ab_squared : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  return (a + t * ab - p).squaredNorm();
+}
+
+// A lower bound on the distance between the segment (a, ab, its box) and everything below a Bvh node: the
+// larger of the sphere bound and the box-box gap, both cheap and each tighter in its own cases (spheres on
+// round patches, boxes on long thin ones).
+double nodeLowerBound(const BvhNode& node, const Eigen::Vector3d& a, const Eigen::Vector3d& ab, double ab_squared,
+                      const Aabb& segment_box) {
+  const double to_center = std::sqrt(pointSegmentSquaredDistance(node.center, a, ab, ab_squared));
+  const double sphere = to_center - node.radius;
+  const Eigen::Vector3d gap =
+      (node.box.min - segment_box.max).cwiseMax(segment_box.min - node.box.max).cwiseMax(0.0);
+  return std::max(sphere, gap.norm());
+}
+
+// The unsigned query in frame M: the closest triangle strictly below `bound` (a length), or none.
+struct Closest {
+  double squared = std::numeric_limits<double>::infinity();
+  Eigen::Vector3d on_segment = Eigen::Vector3d::Zero();
+  Eigen::Vector3d on_mesh = Eigen::Vector3d::Zero();
+  int triangle = -1;
+};
+
+Closest closestTriangle(const CflModel& model, const Eigen::Vector3d& a, const Eigen::Vector3d& b, double bound) {
+  const MeshModel& mesh = model.geometry;
+  Closest best;
+  best.squared = bound * bound;
+  auto test = [&](int t, const std::array<Eigen::Vector3d, 3>& c) {
+    Eigen::Vector3d s, q;
+    const double d = segmentTriangleSquaredDistance(a, b, c[0], c[1], c[2], &s, &q);
+    if (d < best.squared) {
+      best.squared = d;
+      best.on_segment = s;
+      best.on_mesh = q;
+      best.triangle = t;
+    }
+  };
+  // Seed: the nearest entries of the leaf lists at both ends (lists are sorted nearest first), so that the
+  // walk below starts with a tight bound and prunes most of the tree at once.
+  const RegionTree& regions = model.regions;
+  if (!regions.nodes.empty()) {
+    for (const Eigen::Vector3d* end : {&a, &b}) {
+      const RegionCell cell = regions.locate(*end);
+      if (!regions.hasList(cell.leaf)) continue;
+      const std::int32_t* first = regions.listBegin(cell.leaf);
+      const std::int32_t* last = std::min(regions.listEnd(cell.leaf), first + 4);
+      for (const std::int32_t* t = first; t != last; ++t) test(*t, mesh.corners[*t]);
+    }
+  }
+  const auto& nodes = mesh.bvh.nodes;
+  if (nodes.empty()) return best;
+  const Eigen::Vector3d ab = b - a;
+  const double ab_squared = ab.squaredNorm();
+  Aabb segment_box;
+  segment_box.extend(a);
+  segment_box.extend(b);
+  // Depth-first, nearer child first; the tree is at most ~log2(n) + 1 deep and the search keeps one pending
+  // sibling per level, so 128 entries cannot overflow (as in detail/nearest_triangle.h).
+  struct Pending {
+    int node;
+    double bound;
+  };
+  Pending stack[128];
+  int top = 0;
+  const double root = nodeLowerBound(nodes[0], a, ab, ab_squared, segment_box);
+  if (root * root >= best.squared) return best;
+  stack[top++] = {0, root};
+  while (top > 0) {
+    const Pending pending = stack[--top];
+    if (pending.bound * pending.bound >= best.squared) continue;
+    const BvhNode& node = nodes[pending.node];
+    if (node.isLeaf()) {
+      for (int i = node.first; i < node.first + node.count; ++i) test(mesh.bvh.triangle_ids[i], mesh.leaf_corners[i]);
+      continue;
+    }
+    const double left = nodeLowerBound(nodes[node.first], a, ab, ab_squared, segment_box);
+    const double right = nodeLowerBound(nodes[node.first + 1], a, ab, ab_squared, segment_box);
+    const bool left_first = left <= right;
+    const Pending near{left_first ? node.first : node.first + 1, left_first ? left : right};
+    const Pending far{left_first ? node.first + 1 : node.first, left_first ? right : left};
+    if (far.bound * far.bound < best.squared) stack[top++] = far;
+    if (near.bound * near.bound < best.squared) stack[top++] = near;
+  }
+  return best;
+}
+
+// The answer in world terms for the pair (on_segment, on_mesh) of triangle t, all in frame M.
+SegmentDistance toWorld(const CflModel& model, const Eigen::Isometry3d& X_WM, double squared,
+                        const Eigen::Vector3d& on_segment, const Eigen::Vector3d& on_mesh, int t) {
+  SegmentDistance result;
+  result.distance = std::sqrt(squared);
+  result.triangle = t;
+  result.segment_point = X_WM * on_segment;
+  result.mesh_point = X_WM * on_mesh;
+  Eigen::Vector3d direction = on_segment - on_mesh;
+  if (!(direction.norm() > 0)) {
+    const auto& c = model.geometry.corners[t];
+    direction = (c[1] - c[0]).cross(c[2] - c[0]);
+  }
+  const double length = direction.norm();
+  result.direction = length > 0 ? Eigen::Vector3d(X_WM.linear() * direction / length) : Eigen::Vector3d::Zero();
+  return result;
+}
+
+void validate(const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p0_W, const Eigen::Vector3d& p1_W, double bound,
+              const char* what) {
+  validatePose(X_WM, "X_WM");
+  if (!p0_W.allFinite() || !p1_W.allFinite()) throw Error(std::string(what) + ": a segment end is not finite");
+  if (!(bound >= 0)) throw Error(std::string(what) + ": the bound must be >= 0 (got " + std::to_string(bound) + ")");
+}
+
+}  // namespace
+
+std::size_t findTrianglesNearSegment(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p0_W,
+                                     const Eigen::Vector3d& p1_W, double radius, std::size_t max_count,
+                                     std::vector<SegmentDistance>* found) {
+  validate(X_WM, p0_W, p1_W, radius, "findTrianglesNearSegment");
+  const Eigen::Isometry3d X_MW = X_WM.inverse();
+  const Eigen::Vector3d a = X_MW * p0_W, b = X_MW * p1_W;
+  const MeshModel& mesh = model.geometry;
+  const auto& nodes = mesh.bvh.nodes;
+  std::size_t count = 0;
+  if (nodes.empty() || max_count == 0) return 0;
+  const Eigen::Vector3d ab = b - a;
+  const double ab_squared = ab.squaredNorm();
+  Aabb segment_box;
+  segment_box.extend(a);
+  segment_box.extend(b);
+  const double radius_squared = radius * radius;
+  int stack[128];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const BvhNode& node = nodes[stack[--top]];
+    if (nodeLowerBound(node, a, ab, ab_squared, segment_box) > radius) continue;
+    if (node.isLeaf()) {
+      for (int i = node.first; i < node.first + node.count; ++i) {
+        const auto& c = mesh.leaf_corners[i];
+        Eigen::Vector3d s, q;
+        const double d = segmentTriangleSquaredDistance(a, b, c[0], c[1], c[2], &s, &q);
+        if (!(d <= radius_squared)) continue;
+        if (found) found->push_back(toWorld(model, X_WM, d, s, q, mesh.bvh.triangle_ids[i]));
+        if (++count == max_count) return count;
+      }
+      continue;
+    }
+    stack[top++] = node.first + 1;
+    stack[top++] = node.first;
+  }
+  return count;
+}
+
+SegmentDistance computeSegmentDistance(const CflModel& model, const Eigen::Isometry3d& X_WM,
+                                       const Eigen::Vector3d& p0_W, const Eigen::Vector3d& p1_W,
+                                       const SegmentQueryOptions& options) {
+  validate(X_WM, p0_W, p1_W, options.upper_bound, "computeSegmentDistance");
+  if (options.signed_distance)
+    throw Error("computeSegmentDistance: signed queries need the point query (not in this build yet)");
+  const Eigen::Isometry3d X_MW = X_WM.inverse();
+  const Eigen::Vector3d a = X_MW * p0_W, b = X_MW * p1_W;
+  const Closest closest = closestTriangle(model, a, b, options.upper_bound);
+  if (closest.triangle < 0) return SegmentDistance{};
+  return toWorld(model, X_WM, closest.squared, closest.on_segment, closest.on_mesh, closest.triangle);
+}
+
+}  // namespace cfl

@@ -738,6 +738,7 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
   } catch (const Error& error) {
     fail(std::string("MESH section: ") + error.what());
   }
+  model.sign = analyzeMeshSign(model.geometry);
   validateModelStructure(model, name);
   return model;
 }

@@ -6,6 +6,7 @@
 /// and how to build them.
 
 #include "cfl/mesh_model.h"
+#include "cfl/mesh_sign.h"
 #include "cfl/region_tree.h"
 
 #include <cstdint>
@@ -67,6 +68,9 @@ struct BuildStatistics {
 struct CflModel {
   MeshModel geometry;   ///< The mesh, its corners and its Bvh (frame M).
   RegionTree regions;   ///< Frame M.
+  /// Whether the mesh is closed, and what signing its distances needs (mesh_sign.h). Derived from the mesh
+  /// by analyzeMeshSign when the model is built or loaded; not stored in files.
+  MeshSign sign;
   double padding = 3.0;
   bool topology_culling = false;
   BuildStatistics statistics;

@@ -217,7 +217,8 @@ TEST_F(ToolCliTest, BuildSavesAModelThatInfoReadsBack) {
   // Standard error is not a terminal here: plain progress lines, no carriage returns.
   EXPECT_TRUE(contains(build.err, "100%") || contains(build.err, "done in")) << build.err;
   EXPECT_FALSE(contains(build.err, "\r")) << build.err;
-  for (const char* field : {"leaves:", "regions:", "average CFL length:", "longest CFL:", "triangles:"}) {
+  EXPECT_TRUE(contains(info.out, "closed:              yes\n")) << info.out;
+  for (const char* field : {"leaves:", "regions:", "average CFL length:", "longest CFL:", "triangles:", "closed:"}) {
     const auto line = [&](const std::string& text) {
       const auto at = text.find(field);
       return at == std::string::npos ? std::string("missing") : text.substr(at, text.find('\n', at) - at);
@@ -225,6 +226,14 @@ TEST_F(ToolCliTest, BuildSavesAModelThatInfoReadsBack) {
     EXPECT_EQ(line(build.out), line(info.out)) << field;
     EXPECT_NE(line(info.out), "missing") << field;
   }
+}
+
+TEST_F(ToolCliTest, InfoSaysWhyAMeshIsNotClosed) {
+  const std::string mesh = writeMesh("hemisphere.obj", test::makeHemisphere(1.0, 6, 16));
+  const ToolRun info = run({"info", mesh, "--resolution", "10"});
+  ASSERT_EQ(info.status, 0) << info.err;
+  EXPECT_TRUE(contains(info.out, "closed:              no (open: 16 boundary edges (the first between vertices"))
+      << info.out;
 }
 
 TEST_F(ToolCliTest, SmallBenchRunPassesItsExactnessCheckAndWritesJson) {

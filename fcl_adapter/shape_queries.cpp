@@ -15,6 +15,7 @@
 #include "adapter_internal.h"
 
 #include <cfl/cfl_query.h>
+#include <cfl/point_query.h>
 #include <cfl/segment_query.h>
 
 #include <fcl/geometry/shape/capsule.h>
@@ -104,9 +105,33 @@ bool meshTriangleInside(const cfl::MeshModel& mesh, const Transform& tf_c, const
 // Whether the request wants, and the mesh has, a signed distance. A mesh that is not closed has no inside:
 // FCL's own answer stands for it.
 bool signable(const fcl::DistanceRequest<double>& request, const cfl::CflModel& model) {
-  (void)request;
-  (void)model;
-  return false;
+  return request.enable_signed_distance && model.sign.closure.closed;
+}
+
+// The (signed, on a closed mesh when asked) distance of a sphere's center or a capsule's segment: the point
+// query through its leaf for a sphere, the segment query for a capsule. `bound` as in SegmentQueryOptions.
+cfl::SegmentDistance sweptDistance(const cfl::CflModel& model, const Transform& tf_c, const Swept& swept,
+                                   bool signed_distance, double bound) {
+  const Eigen::Isometry3d X_WM(tf_c);
+  if (swept.p0 == swept.p1) {
+    cfl::PointQueryOptions options;
+    options.signed_distance = signed_distance;
+    // A signed query must not be bounded: a center deep inside is far from every triangle, yet closest.
+    if (!signed_distance) options.upper_bound = bound;
+    const cfl::PointDistance d = cfl::computePointDistance(model, X_WM, swept.p0, options);
+    cfl::SegmentDistance s;
+    if (d.triangle < 0) return s;
+    s.distance = d.distance;
+    s.segment_point = swept.p0;
+    s.mesh_point = d.closest_point;
+    s.direction = d.gradient;
+    s.triangle = d.triangle;
+    return s;
+  }
+  cfl::SegmentQueryOptions options;
+  options.signed_distance = signed_distance;
+  options.upper_bound = bound;
+  return cfl::computeSegmentDistance(model, X_WM, swept.p0, swept.p1, options);
 }
 
 }  // namespace
@@ -117,20 +142,19 @@ bool shapeDistance(const Geometry& cfl, const cfl::CflModel& model, const Transf
   const double bound = boundOf(result);
   Swept swept;
   if (asSwept(shape, tf_s, &swept)) {
-    cfl::SegmentQueryOptions options;
     // A pair that cannot beat the result's distance is dropped by FCL's update; the query may dismiss it as
-    // soon as its bounds show that (the shape's surface is `radius` closer than its segment).
-    options.upper_bound = bound + swept.radius;
-    const cfl::SegmentDistance d =
-        cfl::computeSegmentDistance(model, Eigen::Isometry3d(tf_c), swept.p0, swept.p1, options);
+    // soon as its bounds show that (the shape's surface is `radius` closer than its center or segment).
+    const bool signed_distance = signable(request, model);
+    const cfl::SegmentDistance d = sweptDistance(model, tf_c, swept, signed_distance, bound + swept.radius);
     if (d.triangle < 0) return true;  // Not closer than the result's pair: FCL would keep the result as it is.
-    if (d.distance > swept.radius) {
-      record(d.distance - swept.radius, cfl, shape, d.triangle, d.mesh_point,
-             d.segment_point - swept.radius * d.direction, request, result);
-      return true;
-    }
-    if (!signable(request, model)) return false;
-    return false;
+    // Unsigned and touching: FCL's answer (see the top of this file).
+    if (!(d.distance > swept.radius) && !signed_distance) return false;
+    // The shape's point nearest the mesh (outside) or deepest in it (inside): |on_shape - mesh_point| is
+    // |distance - radius| either way, since `direction` points from the mesh point to the segment point
+    // outside and outward inside.
+    record(d.distance - swept.radius, cfl, shape, d.triangle, d.mesh_point, d.segment_point - swept.radius * d.direction,
+           request, result);
+    return true;
   }
   const auto polyhedron = shapeMesh(shape);
   if (polyhedron == nullptr) return false;
@@ -158,12 +182,27 @@ bool shapeCollide(const Geometry& cfl, const cfl::CflModel& model, const Transfo
   const std::size_t budget = request.num_max_contacts - std::min(request.num_max_contacts, result.numContacts());
   std::vector<cfl::SegmentDistance> touching;
   cfl::findTrianglesNearSegment(model, Eigen::Isometry3d(tf_c), swept.p0, swept.p1, swept.radius, budget, &touching);
+  // A closed mesh bounds a solid: a shape inside it collides although it touches no triangle, and every
+  // contact's depth is the shape's depth in the solid (radius minus the signed distance of its core), not
+  // how far it reaches past one triangle.
+  const bool solid = model.sign.closure.closed;
+  cfl::SegmentDistance core;
+  if (solid && (touching.empty() || request.enable_contact))
+    core = sweptDistance(model, tf_c, swept, true, std::numeric_limits<double>::infinity());
+  if (touching.empty() && solid && core.triangle >= 0 && core.distance < 0 && budget > 0) {
+    if (request.enable_contact)
+      result.addContact(fcl::Contact<double>(&cfl, &shape, core.triangle, fcl::Contact<double>::NONE,
+                                             core.segment_point, core.direction, swept.radius - core.distance));
+    else
+      result.addContact(fcl::Contact<double>(&cfl, &shape, core.triangle, fcl::Contact<double>::NONE));
+  }
   for (const cfl::SegmentDistance& t : touching) {
     if (request.enable_contact) {
-      // FCL's convention: the normal points from o1 (the mesh) to o2 (the shape); the depth is how far the
-      // shape reaches past the triangle.
+      // FCL's convention: the normal points from o1 (the mesh) to o2 (the shape), the direction that
+      // separates them; the depth is how far the shape reaches past the triangle (into the solid, if any).
+      const double depth = swept.radius - (solid ? std::min(core.distance, t.distance) : t.distance);
       result.addContact(fcl::Contact<double>(&cfl, &shape, t.triangle, fcl::Contact<double>::NONE, t.mesh_point,
-                                             t.direction, swept.radius - t.distance));
+                                             t.direction, depth));
     } else {
       result.addContact(fcl::Contact<double>(&cfl, &shape, t.triangle, fcl::Contact<double>::NONE));
     }

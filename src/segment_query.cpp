@@ -2,10 +2,12 @@
 
 #include "cfl/cfl_query.h"
 #include "cfl/error.h"
+#include "cfl/point_query.h"
 #include "cfl/triangle_distance.h"
 
 #include <algorithm>
 #include <cmath>
+#include <queue>
 #include <string>
 
 namespace cfl {
@@ -173,6 +175,68 @@ void validate(const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p0_W, const 
   if (!(bound >= 0)) throw Error(std::string(what) + ": the bound must be >= 0 (got " + std::to_string(bound) + ")");
 }
 
+// The least signed distance along [p0, p1] by branch and bound (see segment_query.h): intervals ordered by
+// their lower bound, split at the middle, dropped once they cannot beat the best point by `tolerance`.
+SegmentDistance deepestPoint(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p0_W,
+                             const Eigen::Vector3d& p1_W, double tolerance) {
+  PointQueryOptions point_options;
+  point_options.signed_distance = true;
+  const double length = (p1_W - p0_W).norm();
+  struct Sample {
+    double t;
+    PointDistance f;
+  };
+  struct Interval {
+    Sample lo, hi;
+    double bound;
+  };
+  auto at = [&](double t) {
+    return Sample{t, computePointDistance(model, X_WM, p0_W + t * (p1_W - p0_W), point_options)};
+  };
+  auto point = [&](double t) -> Eigen::Vector3d { return p0_W + t * (p1_W - p0_W); };
+  // Two bounds on how low f can go between two samples: the Lipschitz cone (f changes no faster than the
+  // point moves) and the surface points already known (a point is no deeper than its distance to any of
+  // them; min(|y - q0|, |y - q1|) is largest at an end or where the two distances are equal). The second
+  // is quadratic in the interval's length where the first is linear, which matters along flat faces.
+  auto bound = [&](const Sample& lo, const Sample& hi) {
+    const double span = (hi.t - lo.t) * length;
+    const double cone = 0.5 * (lo.f.distance + hi.f.distance - span);
+    const Eigen::Vector3d &q0 = lo.f.closest_point, &q1 = hi.f.closest_point;
+    auto reach = [&](const Eigen::Vector3d& y) { return std::min((y - q0).norm(), (y - q1).norm()); };
+    double farthest = std::max(reach(point(lo.t)), reach(point(hi.t)));
+    const Eigen::Vector3d direction = p1_W - p0_W, across = q1 - q0;
+    const double slope = direction.dot(across);
+    if (slope != 0) {
+      const double t = (0.5 * (q0 + q1) - p0_W).dot(across) / slope;
+      if (t > lo.t && t < hi.t) farthest = std::max(farthest, reach(point(t)));
+    }
+    return std::max(cone, -farthest);
+  };
+  const Sample first = at(0), last = at(1);
+  Sample best = last.f.distance < first.f.distance ? last : first;
+  auto later = [](const Interval& x, const Interval& y) { return x.bound > y.bound; };
+  std::priority_queue<Interval, std::vector<Interval>, decltype(later)> open(later);
+  if (length > 0) open.push({first, last, bound(first, last)});
+  while (!open.empty()) {
+    const Interval interval = open.top();
+    if (interval.bound >= best.f.distance - tolerance) break;
+    open.pop();
+    const Sample middle = at(0.5 * (interval.lo.t + interval.hi.t));
+    if (middle.f.distance < best.f.distance) best = middle;
+    for (const auto& [lo, hi] : {std::pair{interval.lo, middle}, std::pair{middle, interval.hi}}) {
+      const double b = bound(lo, hi);
+      if (b < best.f.distance - tolerance) open.push({lo, hi, b});
+    }
+  }
+  SegmentDistance result;
+  result.distance = best.f.distance;
+  result.segment_point = point(best.t);
+  result.mesh_point = best.f.closest_point;
+  result.direction = best.f.gradient;
+  result.triangle = best.f.triangle;
+  return result;
+}
+
 }  // namespace
 
 std::size_t findTrianglesNearSegment(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p0_W,
@@ -218,13 +282,33 @@ SegmentDistance computeSegmentDistance(const CflModel& model, const Eigen::Isome
                                        const Eigen::Vector3d& p0_W, const Eigen::Vector3d& p1_W,
                                        const SegmentQueryOptions& options) {
   validate(X_WM, p0_W, p1_W, options.upper_bound, "computeSegmentDistance");
-  if (options.signed_distance)
-    throw Error("computeSegmentDistance: signed queries need the point query (not in this build yet)");
+  if (options.signed_distance && !model.sign.closure.closed)
+    throw Error("computeSegmentDistance: a signed distance needs a closed mesh; this one is not (" +
+                model.sign.closure.reason + ")");
+  if (options.signed_distance && !(options.depth_tolerance >= 0))
+    throw Error("computeSegmentDistance: depth_tolerance must be >= 0 (got " + std::to_string(options.depth_tolerance) +
+                ")");
   const Eigen::Isometry3d X_MW = X_WM.inverse();
   const Eigen::Vector3d a = X_MW * p0_W, b = X_MW * p1_W;
   const Closest closest = closestTriangle(model, a, b, options.upper_bound);
-  if (closest.triangle < 0) return SegmentDistance{};
-  return toWorld(model, X_WM, closest.squared, closest.on_segment, closest.on_mesh, closest.triangle);
+  const SegmentDistance outside =
+      closest.triangle < 0 ? SegmentDistance{}
+                           : toWorld(model, X_WM, closest.squared, closest.on_segment, closest.on_mesh, closest.triangle);
+  if (!options.signed_distance) return outside;
+  // A segment that misses the surface is wholly outside or wholly inside; its first end says which.
+  PointQueryOptions point_options;
+  point_options.signed_distance = true;
+  const bool touching = closest.triangle >= 0 && closest.squared == 0;
+  if (!touching) {
+    const PointDistance end = computePointDistance(model, X_WM, p0_W, point_options);
+    if (end.distance > 0) return outside;
+  }
+  const double tolerance =
+      options.depth_tolerance > 0 ? options.depth_tolerance : 1e-6 * model.geometry.bounds.diagonal();
+  SegmentDistance deepest = deepestPoint(model, X_WM, p0_W, p1_W, tolerance);
+  // Touching without reaching in (or reaching in less than the search resolves): the touching point, at 0.
+  if (touching && !(deepest.distance < 0)) return outside;
+  return deepest;
 }
 
 }  // namespace cfl

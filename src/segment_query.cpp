@@ -295,16 +295,18 @@ SegmentDistance computeSegmentDistance(const CflModel& model, const Eigen::Isome
       closest.triangle < 0 ? SegmentDistance{}
                            : toWorld(model, X_WM, closest.squared, closest.on_segment, closest.on_mesh, closest.triangle);
   if (!options.signed_distance) return outside;
-  // A segment that misses the surface is wholly outside or wholly inside; its first end says which.
+  const double tolerance =
+      options.depth_tolerance > 0 ? options.depth_tolerance : 1e-6 * model.geometry.bounds.diagonal();
+  // A segment that misses the surface is wholly outside or wholly inside; its first end says which. One
+  // that crosses it may come out a rounding error away (the crossing point is computed), so anything
+  // within the tolerance counts as touching and goes to the search, which finds no depth if there is none.
   PointQueryOptions point_options;
   point_options.signed_distance = true;
-  const bool touching = closest.triangle >= 0 && closest.squared == 0;
+  const bool touching = closest.triangle >= 0 && closest.squared <= tolerance * tolerance;
   if (!touching) {
     const PointDistance end = computePointDistance(model, X_WM, p0_W, point_options);
     if (end.distance > 0) return outside;
   }
-  const double tolerance =
-      options.depth_tolerance > 0 ? options.depth_tolerance : 1e-6 * model.geometry.bounds.diagonal();
   SegmentDistance deepest = deepestPoint(model, X_WM, p0_W, p1_W, tolerance);
   // Touching without reaching in (or reaching in less than the search resolves): the touching point, at 0.
   if (touching && !(deepest.distance < 0)) return outside;

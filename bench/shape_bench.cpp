@@ -3,7 +3,7 @@
 // model (fcl_adapter/shape_queries.cpp). Then a robot-like batch: 50 spheres (a link chain's sphere
 // approximation) against a scene mesh at many configurations, spheres per second for both.
 //
-//   cfl_shape_bench [--poses N] [--repeats R] [--clock wall|cpu] [--seed S] [--model-dir DIR]
+//   cfl_shape_bench [--poses N] [--repeats R] [--clock wall|cpu] [--seed S] [--model-dir DIR] [--shape sphere|capsule|box|robot]
 //
 // Poses: for each mesh, shape and range (0.5% and 2% of the mesh's bounding-box diagonal), N poses with a
 // random rotation whose exact distance is the range, found by bisection along a random ray towards the
@@ -150,6 +150,7 @@ int main(int argc, char** argv) {
     int poses = 50, repeats = 15;
     std::uint64_t seed = 1;
     std::string clock_name = "cpu";
+    std::string only;  // --shape NAME: one shape's rows only (profiling).
     const char* env_dir = std::getenv("CFL_DATA_DIR");
     std::string dir = env_dir != nullptr ? env_dir : CFL_DATA_DIR;
     for (int i = 1; i < argc; ++i) {
@@ -163,9 +164,10 @@ int main(int argc, char** argv) {
       else if (arg == "--seed") seed = std::stoull(value());
       else if (arg == "--clock") clock_name = value();
       else if (arg == "--model-dir") dir = value();
+      else if (arg == "--shape") only = value();
       else throw cfl::Error("unknown argument " + arg +
                             " (usage: cfl_shape_bench [--poses N] [--repeats R] [--clock wall|cpu] [--seed S] "
-                            "[--model-dir DIR])");
+                            "[--model-dir DIR] [--shape sphere|capsule|box|robot])");
     }
     if (clock_name != "cpu" && clock_name != "wall") throw cfl::Error("--clock must be wall or cpu");
     const cfl::tool::Clock clock = clock_name == "cpu" ? cfl::tool::Clock::kThreadCpu : cfl::tool::Clock::kWall;
@@ -187,6 +189,7 @@ int main(int argc, char** argv) {
           {"capsule", std::make_shared<fcl::Capsuled>(0.01 * d, 0.05 * d)},
           {"box", std::make_shared<fcl::Boxd>(0.03 * d, 0.02 * d, 0.015 * d)}};
       for (const auto& [shape_name, shape] : shapes) {
+        if (!only.empty() && shape_name != only) continue;
         for (const double range : {0.005, 0.02}) {
           std::vector<Eigen::Isometry3d> placed;
           for (int i = 0; i < poses; ++i) placed.push_back(Eigen::Isometry3d(placeShape(m, shape, range * d, rng)));
@@ -217,6 +220,7 @@ int main(int argc, char** argv) {
       }
     }
 
+    if (!only.empty() && only != "robot") return agree ? 0 : 1;
     // Robot-like batch: 50 spheres along a bent chain (a link chain's sphere approximation, radius 1.5% of
     // the scene's diagonal) placed near the rock at random configurations, each sphere queried on its own as
     // a broadphase's narrow phase does.

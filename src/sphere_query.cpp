@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,33 @@ void computeSphereDistances(const CflModel& model, const Eigen::Isometry3d& X_WM
     s.sphere_point = centers_W[i] - radii[i] * p.gradient;
     s.triangle = p.triangle;
   }
+}
+
+SphereDistance computeLeastSphereDistance(const CflModel& model, const Eigen::Isometry3d& X_WM,
+                                          const Eigen::Vector3d* centers_W, const double* radii, std::size_t count,
+                                          const PointQueryOptions& options, int* index) {
+  if (options.signed_distance)
+    throw Error("computeLeastSphereDistance: unsigned only (use computeSphereDistances for signed distances)");
+  for (std::size_t i = 0; i < count; ++i)
+    if (!(radii[i] >= 0) || !std::isfinite(radii[i]))
+      throw Error("computeLeastSphereDistance: radii[" + std::to_string(i) + "] is " + std::to_string(radii[i]) +
+                  " (must be finite and >= 0)");
+  SphereDistance best;
+  best.distance = options.upper_bound;
+  if (index) *index = -1;
+  PointQueryOptions point_options = options;
+  for (std::size_t i = 0; i < count; ++i) {
+    point_options.upper_bound = best.distance + radii[i];
+    const PointDistance p = computePointDistance(model, X_WM, centers_W[i], point_options);
+    if (p.triangle < 0 || !(p.distance - radii[i] < best.distance)) continue;
+    best.distance = p.distance - radii[i];
+    best.mesh_point = p.closest_point;
+    best.sphere_point = centers_W[i] - radii[i] * p.gradient;
+    best.triangle = p.triangle;
+    if (index) *index = int(i);
+  }
+  if (best.triangle < 0) best.distance = std::numeric_limits<double>::infinity();
+  return best;
 }
 
 }  // namespace cfl

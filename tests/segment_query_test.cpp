@@ -193,6 +193,19 @@ TEST(SphereQuery, BatchIsThePointDistanceMinusTheRadiusSignedOrNot) {
         EXPECT_NEAR((got[i].sphere_point - got[i].mesh_point).norm(), std::abs(got[i].distance), 1e-9) << i;
     }
   }
+  // The least sphere, with its running bound, is the least of the batch.
+  {
+    std::vector<SphereDistance> all(centers.size());
+    computeSphereDistances(c.model, X, centers.data(), radii.data(), centers.size(), all.data());
+    int index = -1;
+    const SphereDistance least = computeLeastSphereDistance(c.model, X, centers.data(), radii.data(), centers.size(), {}, &index);
+    const auto best = std::min_element(all.begin(), all.end(), [](const SphereDistance& x, const SphereDistance& y) {
+      return x.distance < y.distance;
+    });
+    EXPECT_EQ(least.distance, best->distance);
+    ASSERT_GE(index, 0);
+    EXPECT_EQ(all[index].distance, least.distance);
+  }
   radii[7] = -1;
   std::vector<SphereDistance> untouched(centers.size());
   EXPECT_THROW(computeSphereDistances(c.model, X, centers.data(), radii.data(), centers.size(), untouched.data()), Error);

@@ -35,4 +35,14 @@ void computeSphereDistances(const CflModel& model, const Eigen::Isometry3d& X_WM
                             const double* radii, std::size_t count, SphereDistance* results,
                             const PointQueryOptions& options = {});
 
+/// The closest of the spheres to the mesh (a robot's distance to an obstacle): the SphereDistance of least
+/// distance, with its index in `*index` when not null (-1 when none beats options.upper_bound). Serial, each
+/// point query bounded by the best sphere so far plus its radius, so spheres that cannot beat it cost a
+/// leaf lookup or the top of a Bvh walk. options.threads is ignored. Unsigned only (a signed request throws
+/// cfl::Error: a running bound cannot skip a sphere that may be deep inside). Throws like
+/// computeSphereDistances. Allocation-free.
+SphereDistance computeLeastSphereDistance(const CflModel& model, const Eigen::Isometry3d& X_WM,
+                                          const Eigen::Vector3d* centers_W, const double* radii, std::size_t count,
+                                          const PointQueryOptions& options = {}, int* index = nullptr);
+
 }  // namespace cfl

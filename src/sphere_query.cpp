@@ -45,6 +45,8 @@ void computeSphereDistances(const CflModel& model, const Eigen::Isometry3d& X_WM
 SphereDistance computeLeastSphereDistance(const CflModel& model, const Eigen::Isometry3d& X_WM,
                                           const Eigen::Vector3d* centers_W, const double* radii, std::size_t count,
                                           const PointQueryOptions& options, int* index) {
+  if (!(options.upper_bound >= 0))
+    throw Error("computeLeastSphereDistance: upper_bound must be >= 0 (got " + std::to_string(options.upper_bound) + ")");
   if (options.signed_distance)
     throw Error("computeLeastSphereDistance: unsigned only (use computeSphereDistances for signed distances)");
   for (std::size_t i = 0; i < count; ++i)
@@ -56,7 +58,8 @@ SphereDistance computeLeastSphereDistance(const CflModel& model, const Eigen::Is
   if (index) *index = -1;
   PointQueryOptions point_options = options;
   for (std::size_t i = 0; i < count; ++i) {
-    point_options.upper_bound = best.distance + radii[i];
+    // A penetrating best (negative) leaves nothing to find for a sphere that is not larger.
+    point_options.upper_bound = std::max(0.0, best.distance + radii[i]);
     const PointDistance p = computePointDistance(model, X_WM, centers_W[i], point_options);
     if (p.triangle < 0 || !(p.distance - radii[i] < best.distance)) continue;
     best.distance = p.distance - radii[i];

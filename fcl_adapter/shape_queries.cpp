@@ -17,6 +17,7 @@
 #include <cfl/cfl_query.h>
 #include <cfl/point_query.h>
 #include <cfl/segment_query.h>
+#include <cfl/triangle_distance.h>
 
 #include <fcl/geometry/shape/capsule.h>
 #include <fcl/geometry/shape/sphere.h>
@@ -134,6 +135,86 @@ cfl::SegmentDistance sweptDistance(const cfl::CflModel& model, const Transform& 
   return cfl::computeSegmentDistance(model, X_WM, swept.p0, swept.p1, options);
 }
 
+// Contacts of a box or convex with the mesh, one per mesh triangle that meets the solid shape (up to
+// `budget`), as FCL reports them: a triangle meets it when a corner lies inside or it crosses one of the
+// shape's faces (exact tests, cfl::trianglesIntersect). Only triangles in the shape's bounding box can, so the
+// mesh's Bvh is walked where it meets that box. On a closed mesh, a shape wholly inside collides too. The
+// contact point is a point of both; the normal the triangle's, turned towards the shape's center (from o1 to
+// o2); the depth is not computed (0) for a touching triangle, as for the adapter's mesh pairs, and is the
+// depth of the shape's deepest vertex when it lies wholly inside a closed mesh.
+void polyhedronContacts(const Geometry& cfl, const cfl::CflModel& model, const Transform& tf_c, const Geometry& shape,
+                        const ShapeMesh& polyhedron, const Transform& tf_s,
+                        const fcl::CollisionRequest<double>& request, std::size_t budget,
+                        fcl::CollisionResult<double>& result) {
+  if (budget == 0) return;
+  const cfl::MeshModel& mesh = model.geometry;
+  const Eigen::Isometry3d X_SM = Eigen::Isometry3d(tf_s.inverse() * tf_c);
+  const Eigen::Isometry3d X_MS = X_SM.inverse();
+  cfl::Aabb box_M;
+  const cfl::Aabb& box_S = polyhedron.mesh->bounds;
+  for (int k = 0; k < 8; ++k)
+    box_M.extend(X_MS * Eigen::Vector3d(k & 1 ? box_S.max.x() : box_S.min.x(), k & 2 ? box_S.max.y() : box_S.min.y(),
+                                        k & 4 ? box_S.max.z() : box_S.min.z()));
+  const Eigen::Vector3d center_W = tf_s * box_S.center();
+  std::size_t added = 0;
+  auto add = [&](int triangle, const Eigen::Vector3d& p_W, const Eigen::Vector3d& normal_W, double depth) {
+    if (request.enable_contact)
+      result.addContact(fcl::Contact<double>(&cfl, &shape, triangle, fcl::Contact<double>::NONE, p_W, normal_W, depth));
+    else
+      result.addContact(fcl::Contact<double>(&cfl, &shape, triangle, fcl::Contact<double>::NONE));
+    ++added;
+  };
+  const auto& nodes = mesh.bvh.nodes;
+  const auto& faces = polyhedron.mesh->corners;
+  int stack[128];
+  int top = 0;
+  if (!nodes.empty()) stack[top++] = 0;
+  while (top > 0 && added < budget) {
+    const cfl::BvhNode& node = nodes[stack[--top]];
+    if ((node.box.min.array() > box_M.max.array()).any() || (node.box.max.array() < box_M.min.array()).any()) continue;
+    if (!node.isLeaf()) {
+      stack[top++] = node.first + 1;
+      stack[top++] = node.first;
+      continue;
+    }
+    for (int i = node.first; i < node.first + node.count && added < budget; ++i) {
+      const auto& c = mesh.leaf_corners[i];
+      const Eigen::Vector3d t_S[3] = {X_SM * c[0], X_SM * c[1], X_SM * c[2]};
+      Eigen::Vector3d point_S = t_S[0];
+      bool hit = polyhedron.contains(t_S[0]);
+      for (std::size_t f = 0; f < faces.size() && !hit; ++f) {
+        const Eigen::Vector3d face[3] = {faces[f][0], faces[f][1], faces[f][2]};
+        hit = cfl::trianglesIntersect(t_S, face, &point_S);
+      }
+      if (!hit) continue;
+      Eigen::Vector3d normal = tf_c.linear() * (c[1] - c[0]).cross(c[2] - c[0]);
+      const double length = normal.norm();
+      normal = length > 0 ? Eigen::Vector3d(normal / length) : Eigen::Vector3d::Zero();
+      const Eigen::Vector3d p_W = tf_s * point_S;
+      if (normal.dot(center_W - p_W) < 0) normal = -normal;
+      add(mesh.bvh.triangle_ids[i], p_W, normal, 0.0);
+    }
+  }
+  if (added > 0 || !model.sign.closure.closed) return;
+  // Touching no triangle: inside the closed mesh or apart, and a vertex says which.
+  cfl::PointQueryOptions options;
+  options.signed_distance = true;
+  double deepest = 0;
+  cfl::PointDistance at;
+  Eigen::Vector3d vertex_W = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& v : polyhedron.mesh->mesh.vertices) {
+    const Eigen::Vector3d v_W = tf_s * v;
+    const cfl::PointDistance d = cfl::computePointDistance(model, Eigen::Isometry3d(tf_c), v_W, options);
+    if (!(d.distance < 0)) return;  // Not inside (one vertex out and no crossing: all out).
+    if (-d.distance > deepest) {
+      deepest = -d.distance;
+      at = d;
+      vertex_W = v_W;
+    }
+  }
+  if (at.triangle >= 0) add(at.triangle, vertex_W, at.gradient, deepest);
+}
+
 }  // namespace
 
 bool shapeDistance(const Geometry& cfl, const cfl::CflModel& model, const Transform& tf_c, const Geometry& shape,
@@ -177,9 +258,14 @@ bool shapeDistance(const Geometry& cfl, const cfl::CflModel& model, const Transf
 bool shapeCollide(const Geometry& cfl, const cfl::CflModel& model, const Transform& tf_c, const Geometry& shape,
                   const Transform& tf_s, const fcl::CollisionRequest<double>& request,
                   fcl::CollisionResult<double>& result) {
-  Swept swept;
-  if (!asSwept(shape, tf_s, &swept)) return false;
   const std::size_t budget = request.num_max_contacts - std::min(request.num_max_contacts, result.numContacts());
+  Swept swept;
+  if (!asSwept(shape, tf_s, &swept)) {
+    const auto polyhedron = shapeMesh(shape);
+    if (polyhedron == nullptr) return false;
+    polyhedronContacts(cfl, model, tf_c, shape, *polyhedron, tf_s, request, budget, result);
+    return true;
+  }
   std::vector<cfl::SegmentDistance> touching;
   cfl::findTrianglesNearSegment(model, Eigen::Isometry3d(tf_c), swept.p0, swept.p1, swept.radius, budget, &touching);
   // A closed mesh bounds a solid: a shape inside it collides although it touches no triangle, and every

@@ -23,10 +23,11 @@
 ///     the mesh, an unsigned request (or any request on a mesh that is not closed) gets FCL's own answer
 ///     from the BVHModel<OBBRSS> twin below, FCL 0.7's answer being undefined there and programs comparing
 ///     with it; a signed request on a closed mesh gets the negative signed distance for spheres and
-///     capsules (the capsule's depth certified to 1e-6 of the mesh's diagonal). collide with a sphere or
-///     capsule: one contact per triangle within the radius, FCL's roles, positive depth; on a closed mesh a
-///     shape wholly inside collides too. See docs/fcl_adapter.md, "Primitive shapes".
-///   - CFLGeometry / anything else (cylinders, cones, ellipsoids, octrees, and the box / convex collide):
+///     capsules (the capsule's depth certified to 1e-6 of the mesh's diagonal). collide: one contact per
+///     triangle that meets the shape, FCL's roles (depth: positive for spheres and capsules, 0 for boxes and
+///     convexes); on a closed mesh a shape wholly inside collides too. See docs/fcl_adapter.md, "Primitive
+///     shapes".
+///   - CFLGeometry / anything else (cylinders, cones, ellipsoids, octrees):
 ///     FCL's own algorithm for that object against a BVHModel<OBBRSS> of the same triangles, which the
 ///     geometry builds on first use. Results are therefore exactly FCL's, including FCL's habit of reporting
 ///     the mesh as o1 (b1 = triangle) in both orders. Exception: the distance to a plane or halfspace, which

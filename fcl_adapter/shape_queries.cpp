@@ -14,11 +14,13 @@
 
 #include "adapter_internal.h"
 
+#include <cfl/box_query.h>
 #include <cfl/cfl_query.h>
 #include <cfl/point_query.h>
 #include <cfl/segment_query.h>
 #include <cfl/triangle_distance.h>
 
+#include <fcl/geometry/shape/box.h>
 #include <fcl/geometry/shape/capsule.h>
 #include <fcl/geometry/shape/sphere.h>
 
@@ -235,6 +237,20 @@ bool shapeDistance(const Geometry& cfl, const cfl::CflModel& model, const Transf
     // outside and outward inside.
     record(d.distance - swept.radius, cfl, shape, d.triangle, d.mesh_point, d.segment_point - swept.radius * d.direction,
            request, result);
+    return true;
+  }
+  if (shape.getNodeType() == fcl::GEOM_BOX) {
+    // The box's own query: the mesh's Bvh against the box's faces, edges and corners, exact.
+    const auto& box = static_cast<const fcl::Box<double>&>(shape);
+    const cfl::BoxDistance d =
+        cfl::computeBoxDistance(model, Eigen::Isometry3d(tf_c), Eigen::Isometry3d(tf_s), 0.5 * box.side, bound);
+    if (d.triangle < 0) return true;  // Nothing closer than the result's pair, and nothing touching.
+    if (!(d.distance > 0)) return false;
+    if (signable(request, model) &&
+        cfl::computePointDistance(model, Eigen::Isometry3d(tf_c), tf_s.translation(), {true, cfl::SignMethod::kAuto})
+                .distance < 0)
+      return false;  // Inside a closed mesh: see the polyhedra below.
+    record(d.distance, cfl, shape, d.triangle, d.mesh_point, d.box_point, request, result);
     return true;
   }
   const auto polyhedron = shapeMesh(shape);

@@ -125,7 +125,8 @@ std::int64_t countSelfIntersections(const MeshModel& model, const std::vector<st
   return found;
 }
 
-// The far field of every Bvh node (WindingDipole), children before parents.
+// The far field of every Bvh node (WindingDipole), children before parents; leaves' too, which their
+// parents are made of.
 std::vector<WindingDipole> nodeDipoles(const MeshModel& model) {
   const auto& nodes = model.bvh.nodes;
   std::vector<WindingDipole> dipoles(nodes.size());
@@ -177,7 +178,8 @@ std::int64_t memoryBytes(const MeshSign& sign) {
   return std::int64_t(sign.welded_vertex.capacity() * sizeof(std::int32_t) +
                       sign.neighbors.capacity() * sizeof(std::array<std::int32_t, 3>) +
                       sign.vertex_normals.capacity() * sizeof(Eigen::Vector3d) +
-                      sign.node_dipoles.capacity() * sizeof(WindingDipole) + sign.closure.reason.capacity());
+                      sign.node_dipoles.capacity() * sizeof(WindingDipole) +
+                      sign.dipole_index.capacity() * sizeof(std::int32_t));
 }
 
 MeshSign analyzeMeshSign(const MeshModel& model) {
@@ -308,7 +310,15 @@ MeshSign analyzeMeshSign(const MeshModel& model) {
     n = length > 0 ? Eigen::Vector3d(closure.orientation * n / length) : Eigen::Vector3d::Zero();
   }
 
-  sign.node_dipoles = nodeDipoles(model);
+  // Only inner nodes keep theirs (see MeshSign::node_dipoles).
+  const std::vector<WindingDipole> all = nodeDipoles(model);
+  sign.dipole_index.assign(all.size(), -1);
+  for (std::size_t n = 0; n < all.size(); ++n) {
+    if (model.bvh.nodes[n].isLeaf()) continue;
+    sign.dipole_index[n] = std::int32_t(sign.node_dipoles.size());
+    sign.node_dipoles.push_back(all[n]);
+  }
+  sign.node_dipoles.shrink_to_fit();
   return sign;
 }
 

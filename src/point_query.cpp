@@ -19,8 +19,33 @@
 #include <sstream>
 #include <string>
 
+// TSan annotations of the batch's ordering, as in batch_query.cpp: TSan does not see the synchronization
+// inside the uninstrumented libtbb. They compile to nothing outside TSan builds.
+#if defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define CFL_TSAN 1
+#endif
+#endif
+#if defined(__SANITIZE_THREAD__)
+#define CFL_TSAN 1
+#endif
+#ifdef CFL_TSAN
+#include <sanitizer/tsan_interface.h>
+#endif
+
 namespace cfl {
 namespace {
+
+inline void tsanRelease([[maybe_unused]] void* token) {
+#ifdef CFL_TSAN
+  __tsan_release(token);
+#endif
+}
+inline void tsanAcquire([[maybe_unused]] void* token) {
+#ifdef CFL_TSAN
+  __tsan_acquire(token);
+#endif
+}
 
 // The list scan compares lower bounds with the best distance so far; both went through a rounding or two, so
 // a bound is shrunk by far more than their error before it may end the scan.
@@ -129,7 +154,7 @@ void validateOptions(const CflModel& model, const PointQueryOptions& options) {
                 " (SignMethod::kWindingNumber signs any mesh by its generalized winding number)");
   }
   if (options.signed_distance && options.sign_method == SignMethod::kWindingNumber &&
-      model.sign.node_dipoles.size() != model.geometry.bvh.nodes.size()) {
+      model.sign.dipole_index.size() != model.geometry.bvh.nodes.size()) {
     throw Error("cannot sign distances to this mesh: its MeshSign was not computed (see analyzeMeshSign)");
   }
 }
@@ -160,9 +185,11 @@ PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM
     result.distance = distance;
     result.triangle = triangle;
     result.closest_point = X_WM * closest_M;
+    // The kernel's distance and closest point round separately: a tiny distance may come with p == q.
     const Eigen::Vector3d offset = p_M - closest_M;
-    const Eigen::Vector3d g_M = distance > 0 ? Eigen::Vector3d(offset / offset.norm())
-                                             : Eigen::Vector3d(model.sign.closure.orientation * unitNormal(model.geometry, triangle));
+    const double length = offset.norm();
+    const Eigen::Vector3d g_M = length > 0 ? Eigen::Vector3d(offset / length)
+                                           : Eigen::Vector3d(model.sign.closure.orientation * unitNormal(model.geometry, triangle));
     result.gradient = X_WM.linear() * g_M;
     return result;
   }
@@ -188,9 +215,10 @@ PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM
   result.triangle = triangle;
   result.closest_point = X_WM * closest_M;
   Eigen::Vector3d g_M = Eigen::Vector3d::Zero();
-  if (distance > 0) {
-    const Eigen::Vector3d offset = p_M - closest_M;
-    g_M = offset / offset.norm();
+  const Eigen::Vector3d offset = p_M - closest_M;
+  const double offset_length = offset.norm();
+  if (offset_length > 0) {
+    g_M = offset / offset_length;
     if (inside) g_M = -g_M;
   } else {
     // On the surface: the outward pseudonormal, which on a mesh that is not closed may be missing or point
@@ -237,15 +265,20 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   // As computeDistances (batch_query.cpp): an arena capped at `threads` slots, chunks stolen by idle threads;
   // each query writes only its own result, so the answers do not depend on the schedule.
   const std::size_t chunk = std::clamp<std::size_t>(count / (8 * std::size_t(threads)), 1, 256);
+  int before = 0, after = 0;  // Addresses for the TSan annotations only.
+  tsanRelease(&before);
   tbb::task_arena arena(threads);
   arena.execute([&] {
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, count, chunk),
         [&](const tbb::blocked_range<std::size_t>& range) {
+          tsanAcquire(&before);
           for (std::size_t i = range.begin(); i != range.end(); ++i) query(i);
+          tsanRelease(&after);
         },
         tbb::simple_partitioner());
   });
+  tsanAcquire(&after);
 }
 
 }  // namespace cfl

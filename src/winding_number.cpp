@@ -29,7 +29,7 @@ double solidAngle(const Eigen::Vector3d& p, const Eigen::Vector3d& a3, const Eig
 
 double windingNumber(const MeshModel& model, const MeshSign& sign, const Eigen::Vector3d& p_M) {
   const auto& nodes = model.bvh.nodes;
-  if (nodes.empty() || sign.node_dipoles.size() != nodes.size()) return 0;
+  if (nodes.empty() || sign.dipole_index.size() != nodes.size()) return 0;
   // Depth-first; one pending sibling per level of a median-split tree (see nearestTriangle).
   int stack[128];
   int top = 0;
@@ -38,7 +38,14 @@ double windingNumber(const MeshModel& model, const MeshSign& sign, const Eigen::
   while (top > 0) {
     const int index = stack[--top];
     const BvhNode& node = nodes[index];
-    const WindingDipole& d = sign.node_dipoles[index];
+    if (node.isLeaf()) {
+      for (int i = node.first; i < node.first + node.count; ++i) {
+        const auto& c = model.corners[model.bvh.triangle_ids[i]];
+        total += solidAngle(p_M, c[0], c[1], c[2]);
+      }
+      continue;
+    }
+    const WindingDipole& d = sign.node_dipoles[sign.dipole_index[index]];
     const Eigen::Vector3d r = d.center - p_M;
     const double distance_squared = r.squaredNorm();
     if (distance_squared > kWindingFarFactor * kWindingFarFactor * d.radius * d.radius) {
@@ -51,13 +58,6 @@ double windingNumber(const MeshModel& model, const MeshSign& sign, const Eigen::
       double value = d.area_normal.dot(r) * inv3;
       value += inv3 * d.moment.trace() - 3 * inv5 * r.dot(d.moment * r);
       total += value;
-      continue;
-    }
-    if (node.isLeaf()) {
-      for (int i = node.first; i < node.first + node.count; ++i) {
-        const auto& c = model.corners[model.bvh.triangle_ids[i]];
-        total += solidAngle(p_M, c[0], c[1], c[2]);
-      }
       continue;
     }
     stack[top++] = node.first + 1;

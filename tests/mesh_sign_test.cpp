@@ -1,6 +1,7 @@
 // analyzeMeshSign's closure verdicts on crafted meshes, its pseudonormals, and windingNumber against the
 // brute-force solid-angle sum.
 
+#include "cfl/cfl_file.h"
 #include "cfl/cfl_model.h"
 #include "cfl/mesh_sign.h"
 #include "support/sign_references.h"
@@ -170,7 +171,36 @@ TEST(MeshSign, ModelsCarryTheAnalysis) {
   const CflModel model = buildCflModel(test::makeHemisphere(1.0, 6, 16));
   EXPECT_FALSE(model.sign.closure.closed);
   EXPECT_NE(model.sign.closure.reason.find("boundary"), std::string::npos);
-  EXPECT_EQ(model.sign.node_dipoles.size(), model.geometry.bvh.nodes.size());
+  ASSERT_EQ(model.sign.dipole_index.size(), model.geometry.bvh.nodes.size());
+  std::size_t inner = 0;
+  for (std::size_t n = 0; n < model.geometry.bvh.nodes.size(); ++n) {
+    if (model.geometry.bvh.nodes[n].isLeaf()) {
+      EXPECT_EQ(model.sign.dipole_index[n], -1);
+    } else {
+      EXPECT_EQ(model.sign.dipole_index[n], int(inner++));
+    }
+  }
+  EXPECT_EQ(model.sign.node_dipoles.size(), inner);
+}
+
+TEST(MeshSign, LoadedModelsDeriveTheSameAnalysis) {
+  for (const TriangleMesh& mesh : {test::makeTorusKnot(2, 3, 1.0, 0.3, 48, 6), test::makeHemisphere(1.0, 6, 16)}) {
+    const CflModel built = buildCflModel(mesh);
+    const std::vector<unsigned char> bytes = serializeCflModel(built);
+    const CflModel loaded = deserializeCflModel(bytes.data(), bytes.size(), "memory");
+    EXPECT_EQ(loaded.sign.closure.closed, built.sign.closure.closed);
+    EXPECT_EQ(loaded.sign.closure.reason, built.sign.closure.reason);
+    EXPECT_EQ(loaded.sign.closure.orientation, built.sign.closure.orientation);
+    EXPECT_EQ(loaded.sign.welded_vertex, built.sign.welded_vertex);
+    EXPECT_EQ(loaded.sign.neighbors, built.sign.neighbors);
+    EXPECT_EQ(loaded.sign.vertex_normals, built.sign.vertex_normals);
+    EXPECT_EQ(loaded.sign.dipole_index, built.sign.dipole_index);
+    ASSERT_EQ(loaded.sign.node_dipoles.size(), built.sign.node_dipoles.size());
+    for (std::size_t n = 0; n < built.sign.node_dipoles.size(); ++n) {
+      EXPECT_EQ(loaded.sign.node_dipoles[n].moment, built.sign.node_dipoles[n].moment);
+      EXPECT_EQ(loaded.sign.node_dipoles[n].radius, built.sign.node_dipoles[n].radius);
+    }
+  }
 }
 
 // windingNumber against the plain sum over every triangle, at points near and far.

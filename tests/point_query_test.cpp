@@ -15,6 +15,7 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace cfl {
@@ -174,6 +175,7 @@ TEST(PointQuery, SignsMatchTheWindingNumberOnClosedMeshes) {
       {"tetrahedron", tetrahedron()},
       {"dented cube", cubeWithTopAt(0.4)},
       {"spiked cube", cubeWithTopAt(4.0)},
+      {"bunny", test::loadBunny()},
   };
   test::Rng rng(13);
   for (const NamedMesh& named : meshes) {
@@ -259,21 +261,24 @@ TEST(PointQuery, SignedRequestOnAnOpenMeshNamesTheBoundary) {
 TEST(PointQuery, WindingNumberSignsASphereWithAHole) {
   TriangleMesh sphere = test::makeSphere(1.0, 12, 24);
   sphere.triangles.erase(sphere.triangles.begin() + 100);
-  const CflModel model = buildCflModel(sphere);
-  ASSERT_FALSE(model.sign.closure.closed);
-  test::Rng rng(15);
-  const Eigen::Isometry3d X_WM = test::randomPose(rng, 3.0);
-  PointQueryOptions options;
-  options.signed_distance = true;
-  options.sign_method = SignMethod::kWindingNumber;
-  std::normal_distribution<double> gauss;
-  std::uniform_real_distribution<double> unit(0, 1);
-  for (int i = 0; i < 2000; ++i) {
-    const Eigen::Vector3d direction = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
-    const bool inside = i % 2 == 0;
-    const double radius = inside ? 0.8 * unit(rng) : 1.2 + 5 * unit(rng);
-    const PointDistance got = computePointDistance(model, X_WM, X_WM * (radius * direction), options);
-    ASSERT_EQ(got.distance < 0, inside) << "radius " << radius;
+  for (bool inside_out : {false, true}) {
+    SCOPED_TRACE(inside_out ? "inside out" : "outward");
+    const CflModel model = buildCflModel(inside_out ? test::flipped(sphere) : sphere);
+    ASSERT_FALSE(model.sign.closure.closed);
+    test::Rng rng(15);
+    const Eigen::Isometry3d X_WM = test::randomPose(rng, 3.0);
+    PointQueryOptions options;
+    options.signed_distance = true;
+    options.sign_method = SignMethod::kWindingNumber;
+    std::normal_distribution<double> gauss;
+    std::uniform_real_distribution<double> unit(0, 1);
+    for (int i = 0; i < 2000; ++i) {
+      const Eigen::Vector3d direction = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+      const bool inside = i % 2 == 0;
+      const double radius = inside ? 0.8 * unit(rng) : 1.2 + 5 * unit(rng);
+      const PointDistance got = computePointDistance(model, X_WM, X_WM * (radius * direction), options);
+      ASSERT_EQ(got.distance < 0, inside) << "radius " << radius;
+    }
   }
 }
 
@@ -300,6 +305,29 @@ TEST(PointQuery, BatchEqualsSerialBitForBit) {
       }
     }
   }
+}
+
+TEST(PointQuery, ConcurrentCallersGetTheSerialAnswers) {
+  test::Rng rng(17);
+  const CflModel model = buildCflModel(test::makeTorusKnot(2, 3, 1.0, 0.3, 48, 6));
+  const Eigen::Isometry3d X_WM = test::randomPose(rng, 2.0);
+  const std::vector<Eigen::Vector3d> points = samplePoints(model, 1000, rng);
+  PointQueryOptions options;
+  options.signed_distance = true;
+  options.sign_method = SignMethod::kWindingNumber;
+  std::vector<double> serial;
+  for (const auto& p : points) serial.push_back(computePointDistance(model, X_WM, p, options).distance);
+  std::vector<double> a(points.size()), b(points.size());
+  std::thread first([&] {
+    for (std::size_t i = 0; i < points.size(); ++i) a[i] = computePointDistance(model, X_WM, points[i], options).distance;
+  });
+  std::thread second([&] {
+    for (std::size_t i = points.size(); i-- > 0;) b[i] = computePointDistance(model, X_WM, points[i], options).distance;
+  });
+  first.join();
+  second.join();
+  EXPECT_EQ(a, serial);
+  EXPECT_EQ(b, serial);
 }
 
 TEST(PointQuery, BadPointIsNamedByIndex) {

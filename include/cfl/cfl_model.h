@@ -58,7 +58,7 @@ struct BuildStatistics {
   double average_list_length = 0;     ///< Mean CFL length over the leaves that store one.
   std::int64_t longest_list = 0;
   std::int64_t distinct_lists = 0;    ///< Identical lists are stored once.
-  std::int64_t memory_bytes = 0;      ///< Bytes the model's arrays hold (capacity), mesh and Bvh included.
+  std::int64_t memory_bytes = 0;      ///< Bytes the model's arrays hold (capacity), mesh, Bvh and MeshSign included.
   bool coarsened = false;             ///< The build stopped refining at BuildOptions::memory_limit.
   double build_seconds = 0;           ///< Wall time of buildCflModel.
 };

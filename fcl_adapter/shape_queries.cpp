@@ -16,6 +16,7 @@
 
 #include <cfl/box_query.h>
 #include <cfl/cfl_query.h>
+#include <cfl/penetration.h>
 #include <cfl/point_query.h>
 #include <cfl/segment_query.h>
 #include <cfl/triangle_distance.h>
@@ -217,6 +218,27 @@ void polyhedronContacts(const Geometry& cfl, const cfl::CflModel& model, const T
   if (at.triangle >= 0) add(at.triangle, vertex_W, at.gradient, deepest);
 }
 
+// A signed request on a closed mesh with a box or convex that overlaps it or lies inside it: minus the
+// penetration depth (cfl::computeSignedDistance against the shape's own CflModel, built once per shape; its
+// certified lower end), nearest points the deepest point and its closest point on the other surface. A shape
+// whose faces do not close up (a malformed Convex) has no inside: false, FCL's answer.
+bool signedPolyhedron(const Geometry& cfl, const cfl::CflModel& model, const Transform& tf_c, const Geometry& shape,
+                      const Transform& tf_s, const fcl::DistanceRequest<double>& request,
+                      fcl::DistanceResult<double>& result) {
+  const auto polyhedron = shapeMesh(shape);
+  if (polyhedron == nullptr) return false;
+  const cfl::CflModel& solid = polyhedron->solid();
+  if (!solid.sign.closure.closed) return false;
+  cfl::DistanceOptions options;
+  options.rel_err = request.rel_err;
+  options.abs_err = request.abs_err;
+  const cfl::DistanceResult d =
+      cfl::computeSignedDistance(model, Eigen::Isometry3d(tf_c), solid, Eigen::Isometry3d(tf_s), options);
+  if (d.triangle_a < 0) return true;
+  record(d.distance, cfl, shape, d.triangle_a, d.point_a, d.point_b, request, result);
+  return true;
+}
+
 }  // namespace
 
 bool shapeDistance(const Geometry& cfl, const cfl::CflModel& model, const Transform& tf_c, const Geometry& shape,
@@ -245,11 +267,14 @@ bool shapeDistance(const Geometry& cfl, const cfl::CflModel& model, const Transf
     const cfl::BoxDistance d =
         cfl::computeBoxDistance(model, Eigen::Isometry3d(tf_c), Eigen::Isometry3d(tf_s), 0.5 * box.side, bound);
     if (d.triangle < 0) return true;  // Nothing closer than the result's pair, and nothing touching.
-    if (!(d.distance > 0)) return false;
-    if (signable(request, model) &&
+    const bool signed_distance = signable(request, model);
+    if (!(d.distance > 0))
+      return signed_distance && signedPolyhedron(cfl, model, tf_c, shape, tf_s, request, result);
+    // Apart from the surface; when signed, also outside the solid (the center says which).
+    if (signed_distance &&
         cfl::computePointDistance(model, Eigen::Isometry3d(tf_c), tf_s.translation(), {true, cfl::SignMethod::kAuto})
                 .distance < 0)
-      return false;  // Inside a closed mesh: see the polyhedra below.
+      return signedPolyhedron(cfl, model, tf_c, shape, tf_s, request, result);
     record(d.distance, cfl, shape, d.triangle, d.mesh_point, d.box_point, request, result);
     return true;
   }
@@ -264,15 +289,15 @@ bool shapeDistance(const Geometry& cfl, const cfl::CflModel& model, const Transf
   const bool overlapping =
       (d.triangle_a >= 0 && d.distance == 0) || meshTriangleInside(model.geometry, tf_c, *polyhedron, tf_s);
   // A signed request on a closed mesh also needs the shape outside the solid; its surface not meeting the
-  // mesh's, one vertex says. Inside, the answer is minus a penetration depth, which this adapter does not
-  // compute yet for polyhedra (issue 32's penetration query): FCL's answer stands meanwhile, as it does for
-  // every overlapping polyhedron.
+  // mesh's, one vertex says. Overlapping or inside: minus the penetration depth.
+  const bool signed_distance = signable(request, model);
   const bool inside_solid =
-      !overlapping && signable(request, model) &&
+      !overlapping && signed_distance &&
       cfl::computePointDistance(model, Eigen::Isometry3d(tf_c), tf_s * polyhedron->mesh->mesh.vertices[0],
                                 {true, cfl::SignMethod::kAuto})
               .distance < 0;
-  if (overlapping || inside_solid) return false;
+  if (overlapping || inside_solid)
+    return signed_distance && signedPolyhedron(cfl, model, tf_c, shape, tf_s, request, result);
   if (d.triangle_a >= 0) record(d.distance, cfl, shape, d.triangle_a, d.point_a, d.point_b, request, result);
   return true;
 }

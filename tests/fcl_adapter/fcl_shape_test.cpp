@@ -319,6 +319,50 @@ TEST(FclShapeDistance, SignedSphereAndCapsuleOnAClosedMeshAreTheBruteForceSigned
   EXPECT_GT(inside, 5);
 }
 
+// Distance from p (world) to the surface of the box of half extents `half` at tf, and whether p is inside.
+double boxSurfaceDistance(const fcl::Transform3d& tf, const Eigen::Vector3d& half, const fcl::Vector3d& p, bool* inside) {
+  const Eigen::Vector3d q = tf.inverse() * p;
+  const Eigen::Vector3d excess = q.cwiseAbs() - half;
+  *inside = excess.maxCoeff() <= 0;
+  return *inside ? -excess.maxCoeff() : excess.cwiseMax(0.0).norm();
+}
+
+TEST(FclShapeDistance, SignedBoxOnAClosedMeshIsMinusAnAttainedPenetrationDepth) {
+  const Scene& s = knot();
+  std::mt19937_64 rng(8);
+  int overlapping = 0;
+  for (int i = 0; i < 30; ++i) {
+    const fcl::Transform3d tf_m = meshPose(rng);
+    const fcl::Transform3d tf_s = tf_m * shapePose(s, rng, 0.03, 0.03);
+    const Eigen::Vector3d half = Eigen::Vector3d(0.02, 0.015, 0.01) * s.diagonal;
+    auto box = std::make_shared<fcl::Boxd>(2 * half);
+    fcl::DistanceRequestd request(true, true);
+    fcl::DistanceResultd got;
+    fcl::distance(box.get(), tf_s, s.cfl.get(), tf_m, request, got);
+    const std::string at = "pose " + std::to_string(i);
+    expectShapeResult(s, tf_m, box.get(), got, at);
+    // Apart: the exact distance (brute force); overlapping: negative, and the depth is attained by one of the
+    // two nearest points: the box's point inside the mesh at that depth, or the mesh's point inside the box.
+    const cfl::DistanceResult apart = cfl::bruteForceDistance(cfl::makeMeshModel(s.mesh), Eigen::Isometry3d(tf_m),
+                                                              cfl::makeMeshModel(cfl::test::makeBox(-half, half)),
+                                                              Eigen::Isometry3d(tf_s));
+    const bool box_inside = signedPointDistance(s, tf_m, tf_s.translation()) < 0 && apart.distance > 0;
+    if (apart.distance > s.tolerance && !box_inside) {
+      EXPECT_NEAR(got.min_distance, apart.distance, s.tolerance) << at;
+      continue;
+    }
+    ++overlapping;
+    EXPECT_LT(got.min_distance, 0.0) << at;
+    bool mesh_point_in_box = false;
+    const double mesh_point_depth = boxSurfaceDistance(tf_s, half, got.nearest_points[0], &mesh_point_in_box);
+    const bool box_point_attains = std::abs(signedPointDistance(s, tf_m, got.nearest_points[1]) - got.min_distance) <=
+                                   1e-6 * s.diagonal;
+    const bool mesh_point_attains = mesh_point_in_box && std::abs(mesh_point_depth + got.min_distance) <= 1e-6 * s.diagonal;
+    EXPECT_TRUE(box_point_attains || mesh_point_attains) << at << " distance " << got.min_distance;
+  }
+  EXPECT_GT(overlapping, 5);
+}
+
 TEST(FclShapeDistance, SignedRequestOnAnOpenMeshOrSoupIsFclsAnswer) {
   std::mt19937_64 rng(5);
   for (const Scene* s : {&sheet(), &soup()}) {

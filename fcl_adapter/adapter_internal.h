@@ -55,8 +55,8 @@ std::shared_ptr<const ShapeMesh> shapeMesh(const fcl::CollisionGeometry<double>&
 /// tf_s), answered from the regions and recorded in `result` as FCL records its shape-mesh pairs (o1 = the
 /// CFL geometry, b1 = its triangle, o2 = the shape, b2 = NONE, in both argument orders). Returns false,
 /// leaving `result` untouched, when FCL's own algorithm must answer instead: other shapes, and requests
-/// where the shape touches or overlaps a mesh that is not signed, or (box, convex) any mesh: no penetration
-/// query yet (see shape_queries.cpp).
+/// where the shape touches or overlaps a mesh that is not signed (unsigned request, or a mesh that is not
+/// closed; see shape_queries.cpp).
 bool shapeDistance(const fcl::CollisionGeometry<double>& cfl, const cfl::CflModel& model,
                    const fcl::Transform3<double>& tf_c, const fcl::CollisionGeometry<double>& shape,
                    const fcl::Transform3<double>& tf_s, const fcl::DistanceRequest<double>& request,

@@ -2,8 +2,10 @@
 // OBBRSS twin:
 //   - sphere: the distance of its center minus its radius; capsule: of its segment minus its radius
 //     (cfl::computeSegmentDistance, a point being a segment of length 0);
-//   - box and convex: the mesh-mesh query against the shape's triangles (shape_mesh_cache.cpp), plus a test
-//     for mesh triangles lying wholly inside the solid shape, which touch no face.
+//   - box: cfl::computeBoxDistance; convex: the mesh-mesh query against its triangles (shape_mesh_cache.cpp),
+//     plus a test for mesh triangles lying wholly inside the solid shape, which touch no face;
+//   - signed requests on closed meshes: negative inside (signed point and segment queries for spheres and
+//     capsules, the penetration query against the shape's own CflModel for boxes and convexes).
 //
 // Where FCL's answer is kept: when the shape touches or overlaps the mesh and the request is unsigned (or the
 // mesh is not closed, so it has no inside), the pair goes to FCL's own shape-mesh algorithm on the twin.

@@ -18,12 +18,14 @@
 ///     FCL reports shape-mesh pairs in both orders (o1 = the CFLGeometry with b1 = its triangle, o2 = the
 ///     shape with b2 = NONE) with world-frame nearest points. Sphere: the point distance of its center minus
 ///     the radius; capsule: the distance of its axis segment (cfl::computeSegmentDistance) minus the radius;
-///     box and convex: cfl::computeDistance against the shape's triangles (cached per box size / per convex,
+///     box: cfl::computeBoxDistance; convex: cfl::computeDistance against its triangles (cached per convex,
 ///     compared on every lookup, so an entry never outlives its shape). Where the shape touches or overlaps
 ///     the mesh, an unsigned request (or any request on a mesh that is not closed) gets FCL's own answer
 ///     from the BVHModel<OBBRSS> twin below, FCL 0.7's answer being undefined there and programs comparing
-///     with it; a signed request on a closed mesh gets the negative signed distance for spheres and
-///     capsules (the capsule's depth certified to 1e-6 of the mesh's diagonal). collide: one contact per
+///     with it; a signed request on a closed mesh gets the negative signed distance: for spheres and
+///     capsules that of the center or axis minus the radius (the capsule's depth certified to 1e-6 of the
+///     mesh's diagonal), for boxes and convexes minus the penetration depth (cfl::computeSignedDistance
+///     against the shape's own CflModel, built once per box size or convex). collide: one contact per
 ///     triangle that meets the shape, FCL's roles (depth: positive for spheres and capsules, 0 for boxes and
 ///     convexes); on a closed mesh a shape wholly inside collides too. See docs/fcl_adapter.md, "Primitive
 ///     shapes".

@@ -57,8 +57,9 @@ struct SegmentDistance {
 /// Distance from the segment [p0_W, p1_W] (world frame; p0 == p1 is a point) to the mesh of `model` at
 /// pose X_WM.
 ///
-/// Unsigned: a best-first walk of the mesh's Bvh, nodes bounded by their spheres and boxes, seeded by the
-/// closest triangles listed in the regions' leaves at the segment's ends; exact.
+/// Unsigned: a depth-first, nearer-child-first walk of the mesh's Bvh, nodes bounded by their spheres and boxes,
+/// triangles by their planes; exact. (The regions' leaf lists at the segment's ends as a first bound cost more
+/// than they saved.) The signed query's point queries use the regions.
 /// Signed (closed mesh): when the segment neither touches the surface nor starts inside, the unsigned answer.
 /// Otherwise a branch and bound over the segment on the signed point distance f, which is 1-Lipschitz: an
 /// interval [y0, y1] with closest points q0, q1 cannot hold a point deeper than both

@@ -145,8 +145,9 @@ cfl::SegmentDistance sweptDistance(const cfl::CflModel& model, const Transform& 
 // shape's faces (exact tests, cfl::trianglesIntersect). Only triangles in the shape's bounding box can, so the
 // mesh's Bvh is walked where it meets that box. On a closed mesh, a shape wholly inside collides too. The
 // contact point is a point of both; the normal the triangle's, turned towards the shape's center (from o1 to
-// o2); the depth is not computed (0) for a touching triangle, as for the adapter's mesh pairs, and is the
-// depth of the shape's deepest vertex when it lies wholly inside a closed mesh.
+// o2); the depth is the pair's penetration depth on a closed mesh (cfl::computePenetration's certified lower
+// end, the same for every contact of the pair), not computed (0) on other meshes, as for the adapter's mesh
+// pairs, and the depth of the shape's deepest vertex when it lies wholly inside a closed mesh.
 void polyhedronContacts(const Geometry& cfl, const cfl::CflModel& model, const Transform& tf_c, const Geometry& shape,
                         const ShapeMesh& polyhedron, const Transform& tf_s,
                         const fcl::CollisionRequest<double>& request, std::size_t budget,
@@ -168,6 +169,19 @@ void polyhedronContacts(const Geometry& cfl, const cfl::CflModel& model, const T
     else
       result.addContact(fcl::Contact<double>(&cfl, &shape, triangle, fcl::Contact<double>::NONE));
     ++added;
+  };
+  // On a closed mesh the pair has a penetration depth (the shape's own CflModel against the mesh, once per
+  // call, only when contacts carry depths); elsewhere a touching triangle's depth is not computed (0).
+  double pair_depth = 0;
+  bool depth_known = !request.enable_contact || !model.sign.closure.closed;
+  auto depthOfPair = [&]() {
+    if (!depth_known) {
+      depth_known = true;
+      const cfl::CflModel& solid = polyhedron.solid();
+      if (solid.sign.closure.closed)
+        pair_depth = cfl::computePenetration(model, Eigen::Isometry3d(tf_c), solid, Eigen::Isometry3d(tf_s)).depth;
+    }
+    return pair_depth;
   };
   const auto& nodes = mesh.bvh.nodes;
   const auto& faces = polyhedron.mesh->corners;
@@ -197,7 +211,7 @@ void polyhedronContacts(const Geometry& cfl, const cfl::CflModel& model, const T
       normal = length > 0 ? Eigen::Vector3d(normal / length) : Eigen::Vector3d::Zero();
       const Eigen::Vector3d p_W = tf_s * point_S;
       if (normal.dot(center_W - p_W) < 0) normal = -normal;
-      add(mesh.bvh.triangle_ids[i], p_W, normal, 0.0);
+      add(mesh.bvh.triangle_ids[i], p_W, normal, depthOfPair());
     }
   }
   if (added > 0 || !model.sign.closure.closed) return;

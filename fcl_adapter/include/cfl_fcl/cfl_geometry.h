@@ -26,8 +26,9 @@
 ///     capsules that of the center or axis minus the radius (the capsule's depth certified to 1e-6 of the
 ///     mesh's diagonal), for boxes and convexes minus the penetration depth (cfl::computeSignedDistance
 ///     against the shape's own CflModel, built once per box size or convex). collide: one contact per
-///     triangle that meets the shape, FCL's roles (depth: positive for spheres and capsules, 0 for boxes and
-///     convexes); on a closed mesh a shape wholly inside collides too. See docs/fcl_adapter.md, "Primitive
+///     triangle that meets the shape, FCL's roles (depth: positive for spheres and capsules; for boxes and
+///     convexes the pair's penetration depth on a closed mesh, 0 otherwise); on a closed mesh a shape wholly
+///     inside collides too. See docs/fcl_adapter.md, "Primitive
 ///     shapes".
 ///   - CFLGeometry / anything else (cylinders, cones, ellipsoids, octrees):
 ///     FCL's own algorithm for that object against a BVHModel<OBBRSS> of the same triangles, which the

@@ -43,6 +43,8 @@ struct Sample {
 struct Piece {
   double upper = 0;  // bound on the depth of every point of the piece inside the solid
   int direction = 0;
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();  // a node's sphere center (solid frame) and signed distance
+  double center_signed_distance = 0;
   int node = -1;
   int skin_triangle = -1;
   Sample corner[3];
@@ -168,21 +170,29 @@ class PenetrationSearch {
     const Direction& d = directions_[direction];
     if (d.skin->geometry.bvh.nodes.empty()) return;
     vertex_samples_[direction].assign(d.skin->geometry.mesh.vertices.size(), Sample{});
-    pushNode(direction, 0);
+    pushNode(direction, 0, nullptr);
   }
 
   // A Bvh node of the skin: every point of it lies within its sphere (center c, radius r), and the signed
   // distance is 1-Lipschitz, so no point of it is deeper than -sd(c) + r, and none is inside when
   // sd(c) >= r.
-  void pushNode(int direction, int index) {
+  void pushNode(int direction, int index, const Piece* parent) {
     const Direction& d = directions_[direction];
     const BvhNode& node = d.skin->geometry.bvh.nodes[index];
-    const Sample c = sample(direction, d.X_SolidSkin * node.center, -1);
+    const Eigen::Vector3d center = d.X_SolidSkin * node.center;
+    if (parent != nullptr) {
+      // The parent's sample bounds the child's center's without a query: sd(c) >= sd(parent) - |c - parent|.
+      const double at_least = parent->center_signed_distance - (center - parent->center).norm();
+      if (at_least >= node.radius || node.radius - at_least <= best_) return;
+    }
+    const Sample c = sample(direction, center, -1);
     if (c.signed_distance >= node.radius) return;
     Piece piece;
     piece.direction = direction;
     piece.node = index;
     piece.radius = node.radius;
+    piece.center = center;
+    piece.center_signed_distance = c.signed_distance;
     piece.upper = node.radius - c.signed_distance;
     push(std::move(piece));
   }
@@ -203,8 +213,8 @@ class PenetrationSearch {
     const MeshModel& skin = d.skin->geometry;
     const BvhNode& node = skin.bvh.nodes[piece.node];
     if (!node.isLeaf()) {
-      pushNode(piece.direction, node.first);
-      pushNode(piece.direction, node.first + 1);
+      pushNode(piece.direction, node.first, &piece);
+      pushNode(piece.direction, node.first + 1, &piece);
       return;
     }
     for (int i = node.first; i < node.first + node.count; ++i) {

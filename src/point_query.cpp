@@ -61,6 +61,17 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
                       (p_M.array() <= box.max.array()).all();
   if (inside) {
     const RegionCell cell = regions.locate(p_M);
+    // The leaf's corner distances promise a triangle within (corner distance + |p - corner|) of p, distance
+    // being 1-Lipschitz. Corner distances are rounded down to float: inflated by far more than a float's
+    // rounding, the promise holds. It prunes from the first test on, in the list and in the Bvh alike.
+    const std::array<float, 8>& corner_distance = regions.leaf_corner_distance[cell.leaf];
+    double promise = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d corner =
+          cell.min_corner + cell.size * Eigen::Vector3d(double(c & 1), double((c >> 1) & 1), double(c >> 2));
+      promise = std::min(promise, double(corner_distance[c]) * (1 + 1e-6) + (p_M - corner).norm());
+    }
+    promise *= 1 + 1e-9;
     if (regions.hasList(cell.leaf)) {
       // No point of the leaf is closer to the mesh than its lower bound.
       const double leaf_bound = double(regions.leaf_lower_bound[cell.leaf]) * kBoundShrink;
@@ -70,10 +81,31 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       const std::uint8_t* bounds = regions.listBoundsBegin(cell.leaf);
       const double unit = regions.entryBoundUnit(cell.depth) * kBoundShrink;
       const auto& corners = model.geometry.corners;
+      const auto& spheres = model.geometry.spheres;
+      // Prune against the promise as well as the best found; the promise is only a bound, never reported.
+      const double entry_squared = best_squared;
+      double prune_squared = std::min(best_squared, promise * promise);
       for (const std::int32_t* it = begin; it != end; ++it, ++bounds) {
         // Entries are sorted by bound: once one reaches the best distance, none after it can beat it.
         const double bound = double(*bounds) * unit;
-        if (bound * bound >= best_squared) break;
+        if (bound * bound >= prune_squared) break;
+        // The triangle's bounding sphere: a lower bound for a few operations.
+        const Eigen::Vector4d& sphere = spheres[*it];
+        const double gap = (p_M - sphere.head<3>()).norm() - sphere[3];
+        if (gap > 0 && gap * gap * kBoundShrink >= prune_squared) continue;
+        const auto& c = corners[*it];
+        Eigen::Vector3d q;
+        const double d = pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
+        if (d < best_squared) {
+          best_squared = d;
+          best_triangle = *it;
+          closest = q;
+          prune_squared = std::min(prune_squared, d);
+        }
+      }
+      if (best_triangle >= 0 || !(promise * promise < entry_squared)) return;
+      // Unreachable unless a corner distance were wrong: a full scan without the promise stays exact.
+      for (const std::int32_t* it = regions.listBegin(cell.leaf); it != end; ++it) {
         const auto& c = corners[*it];
         Eigen::Vector3d q;
         const double d = pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
@@ -84,6 +116,21 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
         }
       }
       return;
+    }
+    // No list: the Bvh answers, seeded with the promise, so that the walk skips every node farther (for a
+    // point deep inside a solid or far above a flat part, most of the tree).
+    if (promise * promise < best_squared) {
+      double found_squared = promise * promise;
+      int found = -1;
+      Eigen::Vector3d q;
+      detail::nearestTriangle(model.geometry, p_M, found_squared, found, &q);
+      if (found >= 0) {
+        best_squared = found_squared;
+        best_triangle = found;
+        closest = q;
+        return;
+      }
+      // Unreachable unless a corner distance were wrong: the unseeded walk below stays exact regardless.
     }
   }
   detail::nearestTriangle(model.geometry, p_M, best_squared, best_triangle, &closest);

@@ -358,6 +358,9 @@ double distanceImpl(const Geometry* o1, const Transform& tf1, const Owner* owner
   }
   if (other->getNodeType() == fcl::GEOM_PLANE || other->getNodeType() == fcl::GEOM_HALFSPACE)
     return planeDistance(*c, tf_c, other, tf_other, request, result);
+  // Spheres, capsules, boxes and convexes from the CFL model (shape_queries.cpp), except where FCL's own
+  // answer is kept; like FCL's mesh pairs, the return value is the result's distance.
+  if (shapeDistance(*c, c->model(), tf_c, *other, tf_other, request, result)) return result.min_distance;
   // FCL's shape-mesh traversal prunes against the incoming result.min_distance itself, so a broadphase's
   // best distance so far bounds this path too.
   const fcl::BVHModel<fcl::OBBRSSd>* proxy = &c->shapeProxy();
@@ -431,6 +434,9 @@ std::size_t collideImpl(const Geometry* o1, const Transform& tf1, const Owner* o
 
   if (m1 == nullptr || m2 == nullptr) {
     const CFLGeometry* c = c1 != nullptr ? c1 : c2;
+    if (shapeCollide(*c, c->model(), c1 != nullptr ? tf1 : tf2, c1 != nullptr ? *o2 : *o1, c1 != nullptr ? tf2 : tf1,
+                     request, result))
+      return result.numContacts();
     const fcl::BVHModel<fcl::OBBRSSd>* proxy = &c->shapeProxy();
     const std::size_t first_new = result.numContacts();
     const std::size_t n = requireFcl().collide_geometries(c1 != nullptr ? proxy : o1, tf1,

@@ -56,6 +56,8 @@ FCL_EXPORT std::size_t collide<double>(const CollisionGeometry<double>* o1, cons
 #include "cfl_fcl/cfl_geometry.h"
 
 #include <cfl/cfl_query.h>
+#include <cfl/penetration.h>
+#include <cfl/point_query.h>
 #include <fcl/geometry/shape/halfspace.h>
 #include <fcl/geometry/shape/plane.h>
 #include <cfl/error.h>
@@ -308,6 +310,24 @@ double planeDistance(const CFLGeometry& c, const Transform& tf_c, const Geometry
   return result.min_distance;
 }
 
+// Both meshes bound solids, so overlap has a depth (cfl/penetration.h); otherwise a signed request is answered
+// as FCL answers it for meshes: 0 on contact.
+bool signable(const CFLGeometry& c1, const CFLGeometry& c2) {
+  return c1.model().sign.closure.closed && c2.model().sign.closure.closed;
+}
+
+// fcl::distance with enable_signed_distance on two closed CFL meshes: cfl::computeSignedDistance, the distance
+// when they are apart, minus the penetration depth (its certified lower end) when they overlap, with the
+// deepest point and its closest point on the other surface as the nearest points. Under the broadphase's bound
+// a pair that is apart and cannot beat it is dismissed as usual.
+double signedDistance(const CFLGeometry& c1, const Transform& tf1, const CFLGeometry& c2, const Transform& tf2,
+                      const fcl::DistanceRequest<double>& request, fcl::DistanceResult<double>& result) {
+  const cfl::DistanceResult r =
+      cfl::computeSignedDistance(c1.model(), tf1, c2.model(), tf2, optionsOf(request, result));
+  report(r, true, &c1, &c2, request, result);
+  return result.min_distance;
+}
+
 double distanceImpl(const Geometry* o1, const Transform& tf1, const Owner* owner1, const Geometry* o2,
                     const Transform& tf2, const Owner* owner2, const fcl::DistanceRequest<double>& request,
                     fcl::DistanceResult<double>& result) {
@@ -316,6 +336,7 @@ double distanceImpl(const Geometry* o1, const Transform& tf1, const Owner* owner
   if (request.isSatisfied(result)) return result.min_distance;
   const cfl::DistanceOptions options = optionsOf(request, result);
   if (c1 != nullptr && c2 != nullptr) {
+    if (request.enable_signed_distance && signable(*c1, *c2)) return signedDistance(*c1, tf1, *c2, tf2, request, result);
     // The query is fast where the other mesh lies inside A's grid and falls back to the two Bvhs outside it, so
     // A is the larger model (by bounding-box diagonal), whose grid covers more of the smaller one: a link
     // against a table, a shelf or a boulder. The distance is the same either way; equal sizes keep the
@@ -337,6 +358,9 @@ double distanceImpl(const Geometry* o1, const Transform& tf1, const Owner* owner
   }
   if (other->getNodeType() == fcl::GEOM_PLANE || other->getNodeType() == fcl::GEOM_HALFSPACE)
     return planeDistance(*c, tf_c, other, tf_other, request, result);
+  // Spheres, capsules, boxes and convexes from the CFL model (shape_queries.cpp), except where FCL's own
+  // answer is kept; like FCL's mesh pairs, the return value is the result's distance.
+  if (shapeDistance(*c, c->model(), tf_c, *other, tf_other, request, result)) return result.min_distance;
   // FCL's shape-mesh traversal prunes against the incoming result.min_distance itself, so a broadphase's
   // best distance so far bounds this path too.
   const fcl::BVHModel<fcl::OBBRSSd>* proxy = &c->shapeProxy();
@@ -361,6 +385,35 @@ Eigen::Vector3d contactNormal(const cfl::MeshModel& m1, const Transform& tf1, in
   return towards.dot(n) < 0 ? Eigen::Vector3d(-n) : n;
 }
 
+// fcl::collide on two closed CFL meshes: they collide when the surfaces meet or one body holds the other (FCL
+// misses the latter, fcl issue #492). With request.enable_contact every contact carries the bodies' penetration
+// (cfl::computePenetration): its depth, and its normal in FCL's convention (from o1 to o2: moving o2 along it
+// separates the deepest point); the contacts stay the intersecting triangle pairs with pos a point of both, as
+// for any mesh pair. When one body holds the other no triangles meet: one contact, at the deepest point, with
+// b1 / b2 the triangles holding it and its closest point.
+std::size_t collideSolids(const CFLGeometry& c1, const Transform& tf1, const CFLGeometry& c2, const Transform& tf2,
+                          std::size_t budget, const fcl::CollisionRequest<double>& request,
+                          fcl::CollisionResult<double>& result) {
+  const cfl::MeshModel& m1 = c1.model().geometry;
+  const cfl::MeshModel& m2 = c2.model().geometry;
+  std::vector<cfl::Contact> contacts;
+  cfl::computeCollision(m1, tf1, m2, tf2, budget, &contacts);
+  if (contacts.empty() && cfl::bodyContainment(c1.model(), tf1, c2.model(), tf2) == 0) return result.numContacts();
+  if (!request.enable_contact) {
+    if (contacts.empty())
+      result.addContact(fcl::Contact<double>(&c1, &c2, fcl::Contact<double>::NONE, fcl::Contact<double>::NONE));
+    for (const cfl::Contact& k : contacts) result.addContact(fcl::Contact<double>(&c1, &c2, k.triangle_a, k.triangle_b));
+    return result.numContacts();
+  }
+  const cfl::PenetrationResult p = cfl::computePenetration(c1.model(), tf1, c2.model(), tf2);
+  const Eigen::Vector3d normal = p.deepest_body == 0 ? Eigen::Vector3d(-p.normal) : p.normal;
+  if (contacts.empty())
+    result.addContact(fcl::Contact<double>(&c1, &c2, p.triangle_a, p.triangle_b, p.deepest_point, normal, p.depth));
+  for (const cfl::Contact& k : contacts)
+    result.addContact(fcl::Contact<double>(&c1, &c2, k.triangle_a, k.triangle_b, k.position, normal, p.depth));
+  return result.numContacts();
+}
+
 std::size_t collideImpl(const Geometry* o1, const Transform& tf1, const Owner* owner1, const Geometry* o2,
                         const Transform& tf2, const Owner* owner2, const fcl::CollisionRequest<double>& request,
                         fcl::CollisionResult<double>& result) {
@@ -381,6 +434,9 @@ std::size_t collideImpl(const Geometry* o1, const Transform& tf1, const Owner* o
 
   if (m1 == nullptr || m2 == nullptr) {
     const CFLGeometry* c = c1 != nullptr ? c1 : c2;
+    if (shapeCollide(*c, c->model(), c1 != nullptr ? tf1 : tf2, c1 != nullptr ? *o2 : *o1, c1 != nullptr ? tf2 : tf1,
+                     request, result))
+      return result.numContacts();
     const fcl::BVHModel<fcl::OBBRSSd>* proxy = &c->shapeProxy();
     const std::size_t first_new = result.numContacts();
     const std::size_t n = requireFcl().collide_geometries(c1 != nullptr ? proxy : o1, tf1,
@@ -395,6 +451,8 @@ std::size_t collideImpl(const Geometry* o1, const Transform& tf1, const Owner* o
   }
 
   const std::size_t budget = request.num_max_contacts - std::min(request.num_max_contacts, result.numContacts());
+  if (c1 != nullptr && c2 != nullptr && signable(*c1, *c2))
+    return collideSolids(*c1, tf1, *c2, tf2, budget, request, result);
   std::vector<cfl::Contact> contacts;
   cfl::computeCollision(*m1, tf1, *m2, tf2, budget, &contacts);
   for (const cfl::Contact& k : contacts) {

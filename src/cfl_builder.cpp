@@ -680,6 +680,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   CflModel model;
   model.geometry = makeMeshModel(std::move(mesh));
   const MeshModel& geometry = model.geometry;
+  model.sign = analyzeMeshSign(geometry);
   model.padding = options.padding;
   model.topology_culling = options.topology_culling;
   RegionTree& tree = model.regions;
@@ -871,7 +872,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
                        capacityBytes(geometry.corners) + capacityBytes(geometry.spheres) + capacityBytes(geometry.planes) +
                        capacityBytes(geometry.leaf_corners) + capacityBytes(geometry.leaf_spheres) +
                        capacityBytes(geometry.leaf_planes) + capacityBytes(geometry.bvh.nodes) +
-                       capacityBytes(geometry.bvh.triangle_ids);
+                       capacityBytes(geometry.bvh.triangle_ids) + memoryBytes(model.sign);
   stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (progress) progress(1.0);
   return model;

@@ -788,6 +788,7 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
     tree.list_entry_ids.shrink_to_fit();
     tree.list_high_ids.shrink_to_fit();
   }
+  model.sign = analyzeMeshSign(model.geometry);
   validateModelStructure(model, name);
   return model;
 }

@@ -4,7 +4,10 @@
 #include "cfl/cfl_query.h"
 #include "cfl/error.h"
 #include "cfl/mesh_io.h"
+#include "cfl/penetration.h"
+#include "cfl/point_query.h"
 #include "fcl_baseline.h"
+#include "point_file.h"
 #include "pose_file.h"
 #include "referee.h"
 #include "tool_args.h"
@@ -36,7 +39,7 @@ constexpr const char* kInfoUsage = R"(usage: cfl info MESH|FILE.cfl [--resolutio
 Prints the statistics of a saved CFL model, or of the model built from a mesh (same options as 'cfl build').
 )";
 
-constexpr const char* kDistanceUsage = R"(usage: cfl distance A B [--poses FILE] [--method cfl|obbrss|both] [--resolution N]
+constexpr const char* kDistanceUsage = R"(usage: cfl distance A B [--poses FILE] [--method cfl|obbrss|both] [--signed] [--resolution N]
 
 Distance between mesh A at the identity and mesh B at each pose of FILE (standard input when FILE is
 missing or '-'). A may be a .cfl file written by 'cfl build -o'. Prints CSV to standard output:
@@ -55,8 +58,30 @@ Pose file: one pose per line, 12 numbers separated by spaces or commas, the row-
 B's pose. '#' starts a comment; blank lines are skipped. A malformed line is an error naming its number.
 
   --method M      cfl (default), obbrss (FCL 0.7 BVHModel<OBBRSS>) or both
+  --signed        signed distance (both meshes must be closed; see 'cfl info'): the distance when apart, minus
+                  the penetration depth when the bodies overlap (one inside the other included), with the
+                  deepest point and its closest point on the other surface as the two points; cfl only
   --resolution N  when A is a mesh: 0 (default) adaptive regions, N > 0 a uniform grid of N cells
   --threads T     build threads (default: all)
+)";
+
+constexpr const char* kSdfUsage = R"(usage: cfl sdf MESH|FILE.cfl [POINTS] [--signed] [--winding] [--threads T]
+
+Exact distance from each point of POINTS (standard input when missing or '-') to the mesh at the identity:
+the distance field of the mesh, computed, not sampled. Points: one per line, 'x y z' or 'x,y,z'; '#' starts
+a comment. Prints CSV to standard output:
+
+  point,distance,cx,cy,cz,gx,gy,gz,triangle
+
+point is the 0-based index of the point; (cx,cy,cz) its closest point on the mesh, (gx,gy,gz) the unit
+gradient of the (signed) distance there, triangle the id of the triangle holding the closest point.
+
+  --signed        negative inside. The mesh must be closed (see 'cfl info'), signs from angle-weighted
+                  pseudonormals, exact
+  --winding       with --signed: sign by the generalized winding number instead, on any mesh (robust on
+                  nearly closed meshes: small holes, cracks)
+  --resolution N  when MESH is a mesh: 0 (default) adaptive regions, N > 0 a uniform grid
+  --threads T     build and query threads (default: all)
 )";
 
 int parseThreads(const ParsedArgs& args) {
@@ -126,7 +151,7 @@ int runInfo(const std::vector<std::string>& raw, Streams io) {
 }
 
 int runDistance(const std::vector<std::string>& raw, Streams io) {
-  const ParsedArgs args = parseArgs(raw, {{"poses"}, {"method"}, {"resolution"}, {"threads"}});
+  const ParsedArgs args = parseArgs(raw, {{"poses"}, {"method"}, {"resolution"}, {"threads"}, {"signed", false}});
   if (args.has("help")) {
     io.out << kDistanceUsage;
     return 0;
@@ -135,6 +160,10 @@ int runDistance(const std::vector<std::string>& raw, Streams io) {
   const std::string method = args.get("method").value_or("cfl");
   if (method != "cfl" && method != "obbrss" && method != "both") {
     throw UsageError("--method: expected cfl, obbrss or both, got '" + method + "'");
+  }
+  const bool signed_distance = args.has("signed");
+  if (signed_distance && method != "cfl") {
+    throw UsageError("--signed needs --method cfl: FCL 0.7 computes no signed distance between meshes");
   }
   BuildOptions options;
   if (auto r = args.get("resolution")) options.resolution = int(parseInteger(*r, "--resolution", 0, 4096));
@@ -161,7 +190,10 @@ int runDistance(const std::vector<std::string>& raw, Streams io) {
   } else {
     mesh_a = readMeshArgument(args.positionals[0]);
   }
-  MeshModel model_b = makeMeshModel(readMeshArgument(args.positionals[1]));
+  // A signed query needs B's regions too (its inside), so B gets a CFL model of its own.
+  CflModel model_b_cfl;
+  if (signed_distance) model_b_cfl = obtainCflModel(args.positionals[1], options, io.err);
+  MeshModel model_b = signed_distance ? model_b_cfl.geometry : makeMeshModel(readMeshArgument(args.positionals[1]));
   std::unique_ptr<bench::FclModel> fcl_a, fcl_b;
   if (use_fcl) {
     fcl_a = std::make_unique<bench::FclModel>(mesh_a, bench::FclBv::kOBBRSS);
@@ -181,7 +213,8 @@ int runDistance(const std::vector<std::string>& raw, Streams io) {
     DistanceRow cfl_row, fcl_row;
     if (use_cfl) {
       const auto start = std::chrono::steady_clock::now();
-      const DistanceResult r = computeDistance(model_a, X_WA, model_b, X_WB);
+      const DistanceResult r = signed_distance ? computeSignedDistance(model_a, X_WA, model_b_cfl, X_WB)
+                                               : computeDistance(model_a, X_WA, model_b, X_WB);
       const auto stop = std::chrono::steady_clock::now();
       cfl_row = {long(i), r.distance, r.point_a, r.point_b, r.triangle_a, r.triangle_b,
                  std::chrono::duration<double, std::micro>(stop - start).count(), method == "both" ? "cfl" : ""};
@@ -220,11 +253,52 @@ int runDistance(const std::vector<std::string>& raw, Streams io) {
   return 0;
 }
 
+int runSdf(const std::vector<std::string>& raw, Streams io) {
+  const ParsedArgs args = parseArgs(raw, {{"signed", false}, {"winding", false}, {"resolution"}, {"threads"}});
+  if (args.has("help")) {
+    io.out << kSdfUsage;
+    return 0;
+  }
+  if (args.positionals.empty() || args.positionals.size() > 2) {
+    throw UsageError("expected a mesh and a point file, got " + std::to_string(args.positionals.size()) + " arguments");
+  }
+  if (args.has("winding") && !args.has("signed")) throw UsageError("--winding chooses how --signed signs; add --signed");
+  PointQueryOptions query;
+  query.signed_distance = args.has("signed");
+  query.sign_method = args.has("winding") ? SignMethod::kWindingNumber : SignMethod::kAuto;
+  query.threads = parseThreads(args);
+  // Points first: a malformed file should fail before an expensive build.
+  std::vector<Eigen::Vector3d> points;
+  const std::string source = args.positionals.size() == 2 ? args.positionals[1] : "-";
+  if (source == "-") {
+    points = readPoints(io.in, "<stdin>");
+  } else {
+    std::ifstream file(source);
+    if (!file) throw Error(source + ": cannot open the point file");
+    points = readPoints(file, source);
+  }
+  BuildOptions options;
+  if (auto r = args.get("resolution")) options.resolution = int(parseInteger(*r, "--resolution", 0, 4096));
+  options.threads = query.threads;
+  const CflModel model = obtainCflModel(args.positionals[0], options, io.err);
+  std::vector<PointDistance> results(points.size());
+  computePointDistances(model, Eigen::Isometry3d::Identity(), points.data(), points.size(), results.data(), query);
+  io.out << "point,distance,cx,cy,cz,gx,gy,gz,triangle\n";
+  for (std::size_t i = 0; i < results.size(); ++i) {
+    const PointDistance& r = results[i];
+    io.out << format("%zu,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%d\n", i, r.distance, r.closest_point.x(),
+                     r.closest_point.y(), r.closest_point.z(), r.gradient.x(), r.gradient.y(), r.gradient.z(),
+                     r.triangle);
+  }
+  return 0;
+}
+
 const std::vector<Command>& commands() {
   static const std::vector<Command> list = {
       {"build", "precompute the CFL voxels of a mesh, print statistics, optionally save them", runBuild},
       {"info", "statistics of a mesh's CFL model or of a saved .cfl file", runInfo},
       {"distance", "distance between two meshes at poses from a file, as CSV (CFL and/or FCL OBBRSS)", runDistance},
+      {"sdf", "exact (signed) distance from points of a file to a mesh, with closest points, as CSV", runSdf},
       {"bench", "CFL against FCL OBBRSS and RSS on the same random poses, per separation band", runBench},
       {"paper", "the paper's Tables 1 and 2 on the bundled bunny, next to the published figures", runPaper},
       {"suite", "the benchmark suite of varied meshes and pairs: write it, or run it into one table", runSuite},

@@ -29,6 +29,7 @@ const std::vector<Command>& commands();
 int runBuild(const std::vector<std::string>& args, Streams io);
 int runInfo(const std::vector<std::string>& args, Streams io);
 int runDistance(const std::vector<std::string>& args, Streams io);
+int runSdf(const std::vector<std::string>& args, Streams io);
 int runBench(const std::vector<std::string>& args, Streams io);
 int runPaper(const std::vector<std::string>& args, Streams io);
 int runSuite(const std::vector<std::string>& args, Streams io);

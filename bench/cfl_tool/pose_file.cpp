@@ -153,8 +153,9 @@ std::vector<DistanceRow> readDistanceCsv(std::istream& in, const std::string& so
     row.triangle_a = int(integer(8));
     row.triangle_b = int(integer(9));
     row.micros = numbers[10];
-    if (row.pose < 0 || row.distance < 0 || row.micros < 0) {
-      lineError(source, line_number, "pose index, distance and micros must be >= 0");
+    // The distance may be negative: `cfl distance --signed` reports minus the penetration depth.
+    if (row.pose < 0 || row.micros < 0) {
+      lineError(source, line_number, "pose index and micros must be >= 0");
     }
     if (with_method) {
       row.method = fields[11];

@@ -164,6 +164,7 @@ void printStatistics(const CflModel& model, std::ostream& out) {
                 perTriangle(bytesOf(r.list_entry_bounds)), perTriangle(bytesOf(r.list_offsets)));
   out << format("build time:          %.3f s\n", s.build_seconds);
   out << format("topology culling:    %s\n", model.topology_culling ? "on" : "off");
+  out << format("closed:              %s\n", model.sign.closure.closed ? "yes" : ("no (" + model.sign.closure.reason + ")").c_str());
 }
 
 std::string format(const char* fmt, ...) {

@@ -6,6 +6,7 @@
 /// and how to build them.
 
 #include "cfl/mesh_model.h"
+#include "cfl/mesh_sign.h"
 #include "cfl/region_tree.h"
 
 #include <cstdint>
@@ -57,7 +58,7 @@ struct BuildStatistics {
   double average_list_length = 0;     ///< Mean CFL length over the leaves that store one.
   std::int64_t longest_list = 0;
   std::int64_t distinct_lists = 0;    ///< Identical lists are stored once.
-  std::int64_t memory_bytes = 0;      ///< Bytes the model's arrays hold (capacity), mesh and Bvh included.
+  std::int64_t memory_bytes = 0;      ///< Bytes the model's arrays hold (capacity), mesh, Bvh and MeshSign included.
   bool coarsened = false;             ///< The build stopped refining at BuildOptions::memory_limit.
   double build_seconds = 0;           ///< Wall time of buildCflModel.
 };
@@ -67,6 +68,9 @@ struct BuildStatistics {
 struct CflModel {
   MeshModel geometry;   ///< The mesh, its corners and its Bvh (frame M).
   RegionTree regions;   ///< Frame M.
+  /// Whether the mesh is closed, and what signing its distances needs (mesh_sign.h). Derived from the mesh
+  /// by analyzeMeshSign when the model is built or loaded; not stored in files.
+  MeshSign sign;
   double padding = 3.0;
   bool topology_culling = false;
   BuildStatistics statistics;

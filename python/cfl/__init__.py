@@ -21,11 +21,16 @@ from ._cfl import (
     DistanceResult,
     Mesh,
     Model,
+    PenetrationResult,
+    PointDistances,
     __doc__ as _conventions,
     __version__,
     collide,
     distance,
     distances,
+    penetration,
+    point_distances,
+    signed_distance,
 )
 
 __doc__ = __doc__ + "\n" + _conventions.split("\n", 1)[1]
@@ -37,7 +42,12 @@ __all__ = [
     "DistanceResult",
     "Mesh",
     "Model",
+    "PenetrationResult",
+    "PointDistances",
     "collide",
     "distance",
     "distances",
+    "penetration",
+    "point_distances",
+    "signed_distance",
 ]

@@ -120,6 +120,12 @@ class Model:
     def build_seconds(self) -> float: ...
     @property
     def statistics(self) -> dict[str, Union[int, float, bool, list[int]]]: ...
+    @property
+    def closed(self) -> bool:
+        """Whether the mesh bounds a solid; signed queries and penetration need it."""
+    @property
+    def closure(self) -> dict[str, Union[int, bool, str]]:
+        """Why the mesh does or does not bound a solid: closed, reason, edge and triangle counts, orientation."""
 
 class DistanceResult:
     """distance, point_a, point_b (world frame), triangle_a, triangle_b; unpacks in that order."""
@@ -159,6 +165,44 @@ class DistanceBatch:
     def voxel_tests(self) -> npt.NDArray[np.int64]: ...
     def __len__(self) -> int: ...
     def __iter__(self) -> Iterator[npt.NDArray[Any]]: ...
+
+class PointDistances:
+    """Arrays over N points: distance (N,), closest_point / gradient (N, 3), triangle (N,) int32."""
+
+    @property
+    def distance(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def closest_point(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def gradient(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def triangle(self) -> npt.NDArray[np.int32]: ...
+    def __len__(self) -> int: ...
+    def __iter__(self) -> Iterator[npt.NDArray[Any]]: ...
+
+class PenetrationResult:
+    """The certified depth interval of two overlapping closed meshes, with the deepest point (world frame)."""
+
+    @property
+    def overlapping(self) -> bool: ...
+    @property
+    def contained(self) -> int: ...
+    @property
+    def depth(self) -> float: ...
+    @property
+    def depth_upper(self) -> float: ...
+    @property
+    def deepest_point(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def surface_point(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def normal(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def deepest_body(self) -> int: ...
+    @property
+    def triangle_a(self) -> int: ...
+    @property
+    def triangle_b(self) -> int: ...
 
 class Contact:
     @property
@@ -215,3 +259,21 @@ def collide(
     max_contacts: int = 1,
 ) -> CollisionResult:
     """Whether a and b share a point, with up to max_contacts intersecting triangle pairs."""
+
+def point_distances(
+    model: Model,
+    pose: _Pose,
+    points: npt.ArrayLike,
+    *,
+    signed: bool = False,
+    sign_method: str = "auto",
+    upper_bound: float = ...,
+    threads: int = 0,
+) -> PointDistances:
+    """Exact (signed) distance from each of the (N, 3) world-frame points to the mesh, on all cores."""
+
+def signed_distance(a: Model, pose_a: _Pose, b: Model, pose_b: _Pose) -> DistanceResult:
+    """Distance between two closed meshes, minus the penetration depth when they overlap."""
+
+def penetration(a: Model, pose_a: _Pose, b: Model, pose_b: _Pose, *, tolerance: float = 0.0) -> PenetrationResult:
+    """Certified depth of two overlapping closed meshes: the deepest point of either surface inside the other."""

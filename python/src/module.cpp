@@ -9,6 +9,8 @@
 #include "cfl/cfl_file.h"
 #include "cfl/cfl_model.h"
 #include "cfl/cfl_query.h"
+#include "cfl/penetration.h"
+#include "cfl/point_query.h"
 #include "cfl/error.h"
 #include "cfl/mesh.h"
 #include "cfl/mesh_model.h"
@@ -263,6 +265,83 @@ DistanceBatch distances(py::handle a, py::handle pose_a, py::handle b, py::handl
     }
   }
   return batchArrays(std::move(results));
+}
+
+// The answers of point_distances(), views of the C++ results like DistanceBatch.
+struct PointBatch {
+  py::array distance, closest_point, gradient, triangle;
+};
+
+std::vector<Eigen::Vector3d> pointsFromPython(py::handle points, const char* name) {
+  const py::array array = py::array::ensure(points);
+  if (!array) throwTypeError(std::string(name) + " must be an (N, 3) array of numbers");
+  if (array.dtype().kind() != 'f' && array.dtype().kind() != 'i' && array.dtype().kind() != 'u')
+    throwTypeError(std::string(name) + " must hold numbers, got dtype " + std::string(py::str(array.dtype())));
+  if (array.ndim() != 2 || array.shape(1) != 3) {
+    std::string shape = "(";
+    for (py::ssize_t k = 0; k < array.ndim(); ++k) shape += (k ? ", " : "") + std::to_string(array.shape(k));
+    throwValueError(std::string(name) + " must have shape (N, 3), got " + shape + (array.ndim() == 1 ? ",)" : ")"));
+  }
+  const auto values = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(array);
+  std::vector<Eigen::Vector3d> result(static_cast<std::size_t>(values.shape(0)));
+  const double* data = values.data();
+  for (std::size_t i = 0; i < result.size(); ++i) result[i] = Eigen::Vector3d(data[3 * i], data[3 * i + 1], data[3 * i + 2]);
+  return result;
+}
+
+PointBatch pointDistances(py::handle model, py::handle pose, py::handle points, bool signed_distance,
+                          const std::string& sign_method, double upper_bound, int threads) {
+  const cfl::CflModel& m = modelArgument(model, "model");
+  const Eigen::Isometry3d X_WM = poseFromPython(pose, "pose");
+  const std::vector<Eigen::Vector3d> p_W = pointsFromPython(points, "points");
+  cfl::PointQueryOptions options;
+  options.signed_distance = signed_distance;
+  if (sign_method == "auto") options.sign_method = cfl::SignMethod::kAuto;
+  else if (sign_method == "winding") options.sign_method = cfl::SignMethod::kWindingNumber;
+  else throwValueError("sign_method must be 'auto' or 'winding', got '" + sign_method + "'");
+  options.upper_bound = upper_bound;
+  if (threads < 0) throwValueError("threads must be >= 0 (0 = every hardware thread), got " + std::to_string(threads));
+  options.threads = threads;
+  auto results = std::make_unique<std::vector<cfl::PointDistance>>(p_W.size());
+  {
+    py::gil_scoped_release release;
+    cfl::computePointDistances(m, X_WM, p_W.data(), p_W.size(), results->data(), options);
+  }
+  const auto count = static_cast<py::ssize_t>(results->size());
+  if (count == 0) {
+    const std::vector<py::ssize_t> none{0, 3};
+    return {py::array_t<double>(0), py::array_t<double>(none), py::array_t<double>(none), py::array_t<int>(0)};
+  }
+  const cfl::PointDistance& first = results->front();
+  py::capsule owner(results.get(), [](void* vector) { delete static_cast<std::vector<cfl::PointDistance>*>(vector); });
+  results.release();
+  const py::ssize_t row = sizeof(cfl::PointDistance);
+  const auto column = static_cast<py::ssize_t>(sizeof(double));
+  auto vectors = [&](const Eigen::Vector3d& field) {
+    return py::array(py::dtype::of<double>(), {count, py::ssize_t{3}}, {row, column}, field.data(), owner);
+  };
+  return {py::array(py::dtype::of<double>(), {count}, {row}, &first.distance, owner), vectors(first.closest_point),
+          vectors(first.gradient), py::array(py::dtype::of<int>(), {count}, {row}, &first.triangle, owner)};
+}
+
+cfl::DistanceResult signedDistance(py::handle a, py::handle pose_a, py::handle b, py::handle pose_b) {
+  const cfl::CflModel& model_a = modelArgument(a, "a");
+  const cfl::CflModel& model_b = modelArgument(b, "b");
+  const Eigen::Isometry3d X_WA = poseFromPython(pose_a, "pose_a");
+  const Eigen::Isometry3d X_WB = poseFromPython(pose_b, "pose_b");
+  py::gil_scoped_release release;
+  return cfl::computeSignedDistance(model_a, X_WA, model_b, X_WB);
+}
+
+cfl::PenetrationResult penetration(py::handle a, py::handle pose_a, py::handle b, py::handle pose_b, double tolerance) {
+  const cfl::CflModel& model_a = modelArgument(a, "a");
+  const cfl::CflModel& model_b = modelArgument(b, "b");
+  const Eigen::Isometry3d X_WA = poseFromPython(pose_a, "pose_a");
+  const Eigen::Isometry3d X_WB = poseFromPython(pose_b, "pose_b");
+  cfl::PenetrationOptions options;
+  options.tolerance = tolerance;
+  py::gil_scoped_release release;
+  return cfl::computePenetration(model_a, X_WA, model_b, X_WB, options);
 }
 
 struct CollisionResult {
@@ -608,6 +687,22 @@ atomically). Raises OSError when it cannot be written.
                         "coarsened"_a = s.coarsened, "build_seconds"_a = s.build_seconds);
       },
       "The build statistics as a dict.");
+  model.def_property_readonly(
+      "closed", [](const cfl::CflModel& self) { return self.sign.closure.closed; },
+      "True when the mesh bounds a solid (every edge shared by two oppositely oriented triangles, no degenerate "
+      "or crossing triangles): signed queries and penetration need it.");
+  model.def_property_readonly(
+      "closure",
+      [](const cfl::CflModel& self) {
+        const cfl::MeshClosure& c = self.sign.closure;
+        return py::dict("closed"_a = c.closed, "reason"_a = c.reason, "boundary_edges"_a = c.boundary_edges,
+                        "nonmanifold_edges"_a = c.nonmanifold_edges, "inconsistent_edges"_a = c.inconsistent_edges,
+                        "degenerate_triangles"_a = c.degenerate_triangles,
+                        "intersecting_pairs"_a = c.intersecting_pairs, "orientation"_a = c.orientation);
+      },
+      "Why the mesh does or does not bound a solid, as a dict: closed, reason (empty when closed), the counts of "
+      "boundary, non-manifold and inconsistently oriented edges, degenerate triangles, crossing pairs (up to "
+      "1000), and orientation (+1 outward, -1 inside out).");
   model.def("__repr__", [](const cfl::CflModel& self) {
     return "cfl.Model(" + std::to_string(self.geometry.mesh.triangles.size()) + " triangles, resolution " +
            std::to_string(self.statistics.resolution) + ", " + std::to_string(self.statistics.voxel_count) +
@@ -681,6 +776,56 @@ as long as any of them is referenced.
            })
       .def("__repr__", [](const DistanceBatch& batch) {
         return "DistanceBatch(" + std::to_string(batch.distance.shape(0)) + " poses)";
+      });
+
+  py::class_<PointBatch>(m, "PointDistances", R"doc(
+The answers of point_distances() for N points, as NumPy arrays indexed like the points (unpacks as
+distance, closest_point, gradient, triangle): distance (N,) float64 (negative inside when signed);
+closest_point (N, 3) float64, world frame, on the mesh; gradient (N, 3) float64, world frame, the unit
+gradient of the (signed) distance (on the surface the outward normal); triangle (N,) int32, the triangle
+holding closest_point. Views of the C++ results (no copy).
+)doc")
+      .def_readonly("distance", &PointBatch::distance)
+      .def_readonly("closest_point", &PointBatch::closest_point)
+      .def_readonly("gradient", &PointBatch::gradient)
+      .def_readonly("triangle", &PointBatch::triangle)
+      .def("__len__", [](const PointBatch& batch) { return batch.distance.shape(0); })
+      .def("__iter__",
+           [](const PointBatch& batch) {
+             return py::iter(py::make_tuple(batch.distance, batch.closest_point, batch.gradient, batch.triangle));
+           })
+      .def("__repr__", [](const PointBatch& batch) {
+        return "PointDistances(" + std::to_string(batch.distance.shape(0)) + " points)";
+      });
+
+  py::class_<cfl::PenetrationResult>(m, "PenetrationResult", R"doc(
+The answer of penetration(), world frame throughout.
+overlapping: the bodies share a point. contained: 0, or 1 when a holds b wholly inside (no surfaces
+    meeting), 2 when b holds a.
+depth, depth_upper: the certified interval of the depth (the largest distance from a point of one surface
+    inside the other body to that body's surface); depth is attained by deepest_point.
+deepest_point: on the surface of body deepest_body (0: a, 1: b), inside the other body; surface_point: its
+    closest point on the other surface; normal: unit, from deepest_point towards surface_point.
+triangle_a, triangle_b: the triangles of a and b holding those two points.
+)doc")
+      .def_readonly("overlapping", &cfl::PenetrationResult::overlapping)
+      .def_readonly("contained", &cfl::PenetrationResult::contained)
+      .def_readonly("depth", &cfl::PenetrationResult::depth)
+      .def_readonly("depth_upper", &cfl::PenetrationResult::depth_upper)
+      .def_property_readonly("deepest_point",
+                             [](const cfl::PenetrationResult& r) { return vectorToArray(r.deepest_point); })
+      .def_property_readonly("surface_point",
+                             [](const cfl::PenetrationResult& r) { return vectorToArray(r.surface_point); })
+      .def_property_readonly("normal", [](const cfl::PenetrationResult& r) { return vectorToArray(r.normal); })
+      .def_readonly("deepest_body", &cfl::PenetrationResult::deepest_body)
+      .def_readonly("triangle_a", &cfl::PenetrationResult::triangle_a)
+      .def_readonly("triangle_b", &cfl::PenetrationResult::triangle_b)
+      .def("__repr__", [](const cfl::PenetrationResult& r) {
+        std::ostringstream text;
+        text.precision(17);
+        text << "PenetrationResult(overlapping=" << (r.overlapping ? "True" : "False") << ", contained=" << r.contained
+             << ", depth=" << r.depth << ", depth_upper=" << r.depth_upper << ")";
+        return text.str();
       });
 
   py::class_<cfl::Contact>(
@@ -768,5 +913,41 @@ max_contacts: how many intersecting triangle pairs to report (0 = none, only the
 
 Returns a CollisionResult (truthy when colliding) with .colliding and .contacts, a list of Contact
 (triangle_a, triangle_b, position: a world-frame point of both triangles).
+)doc");
+
+  m.def(
+      "point_distances", &pointDistances, "model"_a, "pose"_a, "points"_a, py::kw_only(), "signed"_a = false,
+      "sign_method"_a = "auto", "upper_bound"_a = no_bound, "threads"_a = 0,
+      R"doc(point_distances(model: Model, pose: ArrayLike | None, points: ArrayLike, *, signed: bool = False, sign_method: str = 'auto', upper_bound: float = inf, threads: int = 0) -> PointDistances
+
+The exact distance from each of N points to the mesh of `model` placed at `pose` (an exact distance field,
+not a sampled one), on `threads` threads (0 = every hardware thread) with the GIL released.
+
+points: (N, 3) array, world frame.
+signed: negative inside. sign_method 'auto' (angle-weighted pseudonormals, exact) needs a closed mesh
+    (model.closed; otherwise ValueError naming why not); 'winding' signs by the generalized winding number
+    on any mesh (robust on nearly closed meshes).
+upper_bound: only triangles closer than this are looked for; farther points get inf (or -inf inside) and
+    triangle -1.
+
+Returns PointDistances: distance (N,), closest_point (N, 3), gradient (N, 3), triangle (N,).
+)doc");
+
+  m.def("signed_distance", &signedDistance, "a"_a, "pose_a"_a, "b"_a, "pose_b"_a,
+        R"doc(signed_distance(a: Model, pose_a: ArrayLike | None, b: Model, pose_b: ArrayLike | None) -> DistanceResult
+
+Signed distance between two closed meshes: their distance when apart, minus the penetration depth (see
+penetration(); its certified lower end) when the bodies overlap, one inside the other included. On overlap
+point_a and point_b are the deepest point and its closest point on the other surface, each on its own mesh.
+Raises ValueError naming the mesh and the reason when either is not closed.
+)doc");
+
+  m.def("penetration", &penetration, "a"_a, "pose_a"_a, "b"_a, "pose_b"_a, py::kw_only(), "tolerance"_a = 0.0,
+        R"doc(penetration(a: Model, pose_a: ArrayLike | None, b: Model, pose_b: ArrayLike | None, *, tolerance: float = 0.0) -> PenetrationResult
+
+How deep two closed meshes overlap: the largest distance from a point of one surface lying inside the other
+body to that body's surface (a lower bound on the translational penetration depth), to a certified interval
+[depth, depth_upper] no wider than `tolerance` (0: 1e-4 of the larger bounding-box diagonal).
+Raises ValueError naming the mesh and the reason when either is not closed.
 )doc");
 }

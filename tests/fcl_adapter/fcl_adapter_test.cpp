@@ -317,9 +317,19 @@ TEST(FclAdapterShapes, EveryPrimitiveShapeAgainstCflEqualsTheShapeAgainstObbrssI
         } else {
           plainFcl().distance_objects(&s, &o, request, expected);
         }
+        // Spheres, capsules, boxes and convexes are answered from the CFL model where they do not touch the
+        // mesh (fcl_shape_test.cpp checks them in depth): same distance and roles, their own triangle and points.
+        const int type = shape->getNodeType();
+        const bool from_regions = type == fcl::GEOM_SPHERE || type == fcl::GEOM_CAPSULE || type == fcl::GEOM_BOX ||
+                                  type == fcl::GEOM_CONVEX;
         for (const fcl::DistanceResultd* got : {&shape_first, &cfl_first}) {
           if (plane) break;
           EXPECT_NEAR(got->min_distance, expected.min_distance, request.distance_tolerance) << at;
+          if (from_regions) {
+            EXPECT_EQ(got->o1, m.cfl.get()) << at;
+            EXPECT_EQ(got->b2, -1) << at;  // DistanceResult::NONE
+            continue;
+          }
           EXPECT_EQ(got->b1, expected.b1) << at;
           EXPECT_EQ(got->b2, expected.b2) << at;
           // FCL reports the mesh as o1 in both orders; the CFL geometry must stand where the mesh stood.
@@ -337,8 +347,9 @@ TEST(FclAdapterShapes, EveryPrimitiveShapeAgainstCflEqualsTheShapeAgainstObbrssI
         fcl::collide(&s, &c, creq, cgot);
         fcl::collide(m.cfl.get(), tf_m, shape.get(), tf_s, creq, cgot_geometries);
         EXPECT_EQ(cgot.isCollision(), cexpected.isCollision()) << at;
-        EXPECT_EQ(cgot.numContacts(), cexpected.numContacts()) << at;
         EXPECT_EQ(cgot_geometries.isCollision(), cexpected.isCollision()) << at;
+        if (from_regions) continue;
+        EXPECT_EQ(cgot.numContacts(), cexpected.numContacts()) << at;
         const fcl::CollisionGeometryd* twin = &m.cfl->shapeProxy();
         for (std::size_t k = 0; k < cgot.numContacts(); ++k) {
           EXPECT_NE(cgot.getContact(k).o1, twin) << at;
@@ -399,8 +410,12 @@ TEST(FclAdapterRequest, RelAndAbsErrBoundTheReportedDistanceWhichStaysThatOfItsT
   }
 }
 
-TEST(FclAdapterRequest, SignedDistanceRequestGivesZeroNotNegativeOnOverlapLikeFclMeshes) {
-  const Mesh& m = knot();
+// Closed meshes get a negative distance on overlap (fcl_signed_test.cpp); a mesh that cannot be signed, such as
+// an open bowl, answers as FCL answers for meshes.
+TEST(FclAdapterRequest, SignedDistanceRequestOnAnOpenMeshGivesZeroOnOverlapLikeFclMeshes) {
+  static const auto bowl = makeMesh("bowl", cfl::test::makeHemisphere(1.0, 12, 32), 0);
+  const Mesh& m = *bowl;
+  ASSERT_FALSE(m.cfl->model().sign.closure.closed);
   std::mt19937_64 rng(8);
   int overlapping = 0;
   for (int i = 0; i < 30; ++i) {

@@ -217,7 +217,8 @@ TEST_F(ToolCliTest, BuildSavesAModelThatInfoReadsBack) {
   // Standard error is not a terminal here: plain progress lines, no carriage returns.
   EXPECT_TRUE(contains(build.err, "100%") || contains(build.err, "done in")) << build.err;
   EXPECT_FALSE(contains(build.err, "\r")) << build.err;
-  for (const char* field : {"leaves:", "regions:", "average CFL length:", "longest CFL:", "triangles:"}) {
+  EXPECT_TRUE(contains(info.out, "closed:              yes\n")) << info.out;
+  for (const char* field : {"leaves:", "regions:", "average CFL length:", "longest CFL:", "triangles:", "closed:"}) {
     const auto line = [&](const std::string& text) {
       const auto at = text.find(field);
       return at == std::string::npos ? std::string("missing") : text.substr(at, text.find('\n', at) - at);
@@ -225,6 +226,67 @@ TEST_F(ToolCliTest, BuildSavesAModelThatInfoReadsBack) {
     EXPECT_EQ(line(build.out), line(info.out)) << field;
     EXPECT_NE(line(info.out), "missing") << field;
   }
+}
+
+TEST_F(ToolCliTest, InfoSaysWhyAMeshIsNotClosed) {
+  const std::string mesh = writeMesh("hemisphere.obj", test::makeHemisphere(1.0, 6, 16));
+  const ToolRun info = run({"info", mesh, "--resolution", "10"});
+  ASSERT_EQ(info.status, 0) << info.err;
+  EXPECT_TRUE(contains(info.out, "closed:              no (open: 16 boundary edges (the first between vertices"))
+      << info.out;
+}
+
+TEST_F(ToolCliTest, SdfAnswersEveryPointExactlyAndSignsInsideAClosedMesh) {
+  const TriangleMesh torus = test::makeTorus(1.0, 0.35, 16, 8);
+  const std::string mesh = writeMesh("torus.obj", torus);
+  // The tube's center circle is inside, the axis and far points outside; one line with commas, a comment.
+  const std::string points = "1 0 0\n0,0,0  # the hole\n\n0 -1 0\n3 0 0.5\n";
+  const ToolRun run_signed = run({"sdf", mesh, "--signed"}, points);
+  ASSERT_EQ(run_signed.status, 0) << run_signed.err;
+  std::istringstream lines(run_signed.out);
+  std::string line;
+  std::getline(lines, line);
+  EXPECT_EQ(line, "point,distance,cx,cy,cz,gx,gy,gz,triangle");
+  const std::vector<Eigen::Vector3d> p = {{1, 0, 0}, {0, 0, 0}, {0, -1, 0}, {3, 0, 0.5}};
+  const std::vector<bool> inside = {true, false, true, false};
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    ASSERT_TRUE(std::getline(lines, line)) << run_signed.out;
+    std::vector<double> f;
+    std::stringstream fields(line);
+    for (std::string field; std::getline(fields, field, ',');) f.push_back(std::stod(field));
+    ASSERT_EQ(f.size(), 9u) << line;
+    EXPECT_EQ(f[0], double(i));
+    const double reference = test::referencePointMeshDistance(torus, p[i]);
+    EXPECT_NEAR(std::abs(f[1]), reference, 1e-12) << line;
+    EXPECT_EQ(f[1] < 0, inside[i]) << line;
+    EXPECT_NEAR((Eigen::Vector3d(f[2], f[3], f[4]) - p[i]).norm(), reference, 1e-12) << line;
+  }
+  // Unsigned on an open mesh works; signed names why it cannot; --winding signs it anyway.
+  const std::string bowl = writeMesh("bowl.obj", test::makeHemisphere(1.0, 6, 16));
+  EXPECT_EQ(run({"sdf", bowl}, "0 0 0.5\n").status, 0);
+  const ToolRun refused = run({"sdf", bowl, "--signed"}, "0 0 0.5\n");
+  EXPECT_EQ(refused.status, 1);
+  EXPECT_TRUE(contains(refused.err, "boundary edges")) << refused.err;
+  EXPECT_EQ(run({"sdf", bowl, "--signed", "--winding"}, "0 0 0.5\n").status, 0);
+  // A malformed point names its line.
+  const ToolRun bad = run({"sdf", mesh}, "1 2 3\n1 2\n");
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_TRUE(contains(bad.err, "<stdin>:2: expected three numbers")) << bad.err;
+}
+
+TEST_F(ToolCliTest, SignedDistanceIsNegativeForOverlappingClosedMeshes) {
+  const TriangleMesh box = test::makeBox(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 1, 1));
+  const std::string a = writeMesh("a.obj", box), b = writeMesh("b.obj", box);
+  // B moved by 0.9 along x overlaps A by 0.1; moved by 1.5 it is 0.5 away.
+  const std::string poses = "1 0 0 0.9 0 1 0 0 0 0 1 0\n1 0 0 1.5 0 1 0 0 0 0 1 0\n";
+  const ToolRun r = run({"distance", a, b, "--signed"}, poses);
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::istringstream csv(r.out);
+  const auto rows = tool::readDistanceCsv(csv, "stdout");
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_NEAR(rows[0].distance, -0.1, 1e-9);
+  EXPECT_NEAR(rows[1].distance, 0.5, 1e-9);
+  EXPECT_EQ(run({"distance", a, b, "--signed", "--method", "both"}, poses).status, 2);
 }
 
 TEST_F(ToolCliTest, SmallBenchRunPassesItsExactnessCheckAndWritesJson) {

@@ -161,7 +161,8 @@ TEST(DistanceCsvTest, MalformedInputNamesTheLine) {
   EXPECT_NE(not_number.find("out.csv:4:"), std::string::npos) << not_number;
   EXPECT_NE(not_number.find("field 2"), std::string::npos) << not_number;
   EXPECT_NE(csvError(header + "0,1.5,0,0,0,1,1,1,3.5,4,1\n").find("not an integer"), std::string::npos);
-  EXPECT_NE(csvError(header + "0,-1,0,0,0,1,1,1,3,4,1\n").find("out.csv:2:"), std::string::npos);
+  EXPECT_NE(csvError(header + "-1,1,0,0,0,1,1,1,3,4,1\n").find("out.csv:2:"), std::string::npos);
+  EXPECT_NE(csvError(header + "0,1,0,0,0,1,1,1,3,4,-1\n").find("out.csv:2:"), std::string::npos);
   EXPECT_NE(csvError(header + "0,nan,0,0,0,1,1,1,3,4,1\n").find("out.csv:2:"), std::string::npos);
   const std::string bad_method = csvError(std::string(kDistanceCsvHeader) + ",method\n0,1,0,0,0,1,1,1,3,4,1,pqp\n");
   EXPECT_NE(bad_method.find("out.csv:2:"), std::string::npos) << bad_method;

@@ -14,16 +14,34 @@
 ///   - CFLGeometry / CFLGeometry: cfl::computeDistance on both models, cfl::computeCollision.
 ///   - CFLGeometry / fcl::BVHModel<BV> for every BV FCL ships: the same, with the BVHModel's triangles as the
 ///     other mesh (a cfl::MeshModel copy cached per BVHModel, see forgetBvhModel for its lifetime rule).
-///   - CFLGeometry / anything else (primitive shapes, octrees): FCL's own algorithm for that object against a
-///     BVHModel<OBBRSS> of the same triangles, which the geometry builds on first use. Results are therefore
-///     exactly FCL's, including FCL's habit of reporting the mesh as o1 (b1 = triangle) in both orders.
-///     Exception: the distance to a plane or halfspace, which FCL 0.7 cannot compute for meshes (its GJK
-///     crashes), is computed exactly by the adapter from the triangle corners and reported the same way.
+///   - CFLGeometry / fcl::Sphere, fcl::Capsule, fcl::Box, fcl::Convex: from the CFL model, exact, reported as
+///     FCL reports shape-mesh pairs in both orders (o1 = the CFLGeometry with b1 = its triangle, o2 = the
+///     shape with b2 = NONE) with world-frame nearest points. Sphere: the point distance of its center minus
+///     the radius; capsule: the distance of its axis segment (cfl::computeSegmentDistance) minus the radius;
+///     box: cfl::computeBoxDistance; convex: cfl::computeDistance against its triangles (cached per convex,
+///     compared on every lookup, so an entry never outlives its shape). Where the shape touches or overlaps
+///     the mesh, an unsigned request (or any request on a mesh that is not closed) gets FCL's own answer
+///     from the BVHModel<OBBRSS> twin below, FCL 0.7's answer being undefined there and programs comparing
+///     with it; a signed request on a closed mesh gets the negative signed distance: for spheres and
+///     capsules that of the center or axis minus the radius (the capsule's depth certified to 1e-6 of the
+///     mesh's diagonal), for boxes and convexes minus the penetration depth (cfl::computeSignedDistance
+///     against the shape's own CflModel, built once per box size or convex). collide: one contact per
+///     triangle that meets the shape, FCL's roles (depth: positive for spheres and capsules; for boxes and
+///     convexes the pair's penetration depth on a closed mesh, 0 otherwise); on a closed mesh a shape wholly
+///     inside collides too. See docs/fcl_adapter.md, "Primitive
+///     shapes".
+///   - CFLGeometry / anything else (cylinders, cones, ellipsoids, octrees):
+///     FCL's own algorithm for that object against a BVHModel<OBBRSS> of the same triangles, which the
+///     geometry builds on first use. Results are therefore exactly FCL's, including FCL's habit of reporting
+///     the mesh as o1 (b1 = triangle) in both orders. Exception: the distance to a plane or halfspace, which
+///     FCL 0.7 cannot compute for meshes (its GJK crashes), is computed exactly by the adapter from the
+///     triangle corners and reported the same way.
 ///
 /// Results follow FCL's conventions for BVHModel meshes: world-frame nearest points when
 /// request.enable_nearest_points is set; b1/b2 are triangle ids in each model's own triangle list; o1/o2
 /// are the geometries in argument order; distance is 0 (never negative) when the meshes touch or overlap,
 /// with request.enable_signed_distance or without (no penetration depth is computed, as with BVHModel).
+/// Shapes on a closed mesh are the exception above (negative inside when signed).
 /// request.rel_err / abs_err become cfl::DistanceOptions::rel_err / abs_err (early termination with the
 /// guarantee stated there). request.isSatisfied(result) on entry returns at once, as FCL's dispatch does.
 
@@ -88,7 +106,7 @@ class CFLGeometry final : public fcl::CollisionGeometry<double> {
   /// broadphase managers read. Called by the constructors (and again by fcl::CollisionObject).
   void computeLocalAABB() override;
 
-  /// FCL's own BVHModel<OBBRSS> of the same triangles and ids, used for pairs with primitive shapes. Built on
+  /// FCL's own BVHModel<OBBRSS> of the same triangles and ids, used for the shape pairs FCL answers. Built on
   /// the first call (thread-safe), O(n log n); kept until the geometry is destroyed.
   const fcl::BVHModel<fcl::OBBRSSd>& shapeProxy() const;
 

@@ -1,0 +1,333 @@
+// Point-mesh distance, unsigned or signed (point_query.h).
+
+#include "cfl/point_query.h"
+
+#include "cfl/batch_query.h"
+#include "cfl/cfl_query.h"
+#include "cfl/error.h"
+#include "cfl/triangle_distance.h"
+#include "detail/exact_arithmetic.h"
+#include "detail/nearest_triangle.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <string>
+
+// TSan annotations of the batch's ordering, as in batch_query.cpp: TSan does not see the synchronization
+// inside the uninstrumented libtbb. They compile to nothing outside TSan builds.
+#if defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define CFL_TSAN 1
+#endif
+#endif
+#if defined(__SANITIZE_THREAD__)
+#define CFL_TSAN 1
+#endif
+#ifdef CFL_TSAN
+#include <sanitizer/tsan_interface.h>
+#endif
+
+namespace cfl {
+namespace {
+
+inline void tsanRelease([[maybe_unused]] void* token) {
+#ifdef CFL_TSAN
+  __tsan_release(token);
+#endif
+}
+inline void tsanAcquire([[maybe_unused]] void* token) {
+#ifdef CFL_TSAN
+  __tsan_acquire(token);
+#endif
+}
+
+// The list scan compares lower bounds with the best distance so far; both went through a rounding or two, so
+// a bound is shrunk by far more than their error before it may end the scan.
+constexpr double kBoundShrink = 1 - 1e-12;
+
+// The closest triangle to p_M strictly within sqrt(best_squared) (the entry value), through the point's leaf
+// when it lies in the regions and has a list, else through the Bvh. best_triangle stays -1 when there is none.
+void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& best_squared, int& best_triangle,
+                   Eigen::Vector3d& closest) {
+  const RegionTree& regions = model.regions;
+  const Aabb box = regions.bounds();
+  const bool inside = !regions.nodes.empty() && (p_M.array() >= box.min.array()).all() &&
+                      (p_M.array() <= box.max.array()).all();
+  if (inside) {
+    const RegionCell cell = regions.locate(p_M);
+    // The leaf's corner distances promise a triangle within (corner distance + |p - corner|) of p, distance
+    // being 1-Lipschitz. Corner distances are rounded down to float: inflated by far more than a float's
+    // rounding, the promise holds. It prunes from the first test on, in the list and in the Bvh alike.
+    const std::array<float, 8>& corner_distance = regions.leaf_corner_distance[cell.leaf];
+    double promise = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d corner =
+          cell.min_corner + cell.size * Eigen::Vector3d(double(c & 1), double((c >> 1) & 1), double(c >> 2));
+      promise = std::min(promise, double(corner_distance[c]) * (1 + 1e-6) + (p_M - corner).norm());
+    }
+    promise *= 1 + 1e-9;
+    if (regions.hasList(cell.leaf)) {
+      // No point of the leaf is closer to the mesh than its lower bound.
+      const double leaf_bound = double(regions.leaf_lower_bound[cell.leaf]) * kBoundShrink;
+      if (leaf_bound * leaf_bound >= best_squared && leaf_bound > 0) return;
+      const std::uint32_t list = regions.leaf_list[cell.leaf];
+      const std::uint32_t length = regions.listLength(list);
+      const std::uint8_t* bounds = regions.listBoundsBegin(cell.leaf);
+      const double unit = regions.entryBoundUnit(cell.depth) * kBoundShrink;
+      const auto& corners = model.geometry.corners;
+      const auto& spheres = model.geometry.spheres;
+      // Prune against the promise as well as the best found; the promise is only a bound, never reported.
+      const double entry_squared = best_squared;
+      double prune_squared = std::min(best_squared, promise * promise);
+      for (std::uint32_t n = 0; n < length; ++n, ++bounds) {
+        const std::int32_t t = regions.listTriangle(list, n);
+        // Entries are sorted by bound: once one reaches the best distance, none after it can beat it.
+        const double bound = double(*bounds) * unit;
+        if (bound * bound >= prune_squared) break;
+        // The triangle's bounding sphere: a lower bound for a few operations.
+        const Eigen::Vector4d& sphere = spheres[t];
+        const double gap = (p_M - sphere.head<3>()).norm() - sphere[3];
+        if (gap > 0 && gap * gap * kBoundShrink >= prune_squared) continue;
+        const auto& c = corners[t];
+        Eigen::Vector3d q;
+        const double d = pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
+        if (d < best_squared) {
+          best_squared = d;
+          best_triangle = t;
+          closest = q;
+          prune_squared = std::min(prune_squared, d);
+        }
+      }
+      if (best_triangle >= 0 || !(promise * promise < entry_squared)) return;
+      // Unreachable unless a corner distance were wrong: a full scan without the promise stays exact.
+      for (std::uint32_t n = 0; n < length; ++n) {
+        const std::int32_t t = regions.listTriangle(list, n);
+        const auto& c = corners[t];
+        Eigen::Vector3d q;
+        const double d = pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
+        if (d < best_squared) {
+          best_squared = d;
+          best_triangle = t;
+          closest = q;
+        }
+      }
+      return;
+    }
+    // No list: the Bvh answers, seeded with the promise, so that the walk skips every node farther (for a
+    // point deep inside a solid or far above a flat part, most of the tree).
+    if (promise * promise < best_squared) {
+      double found_squared = promise * promise;
+      int found = -1;
+      Eigen::Vector3d q;
+      detail::nearestTriangle(model.geometry, p_M, found_squared, found, &q);
+      if (found >= 0) {
+        best_squared = found_squared;
+        best_triangle = found;
+        closest = q;
+        return;
+      }
+      // Unreachable unless a corner distance were wrong: the unseeded walk below stays exact regardless.
+    }
+  }
+  detail::nearestTriangle(model.geometry, p_M, best_squared, best_triangle, &closest);
+}
+
+// Which feature of triangle (a, b, c) holds the point closest to p: 0 the face, 1 + e edge e (corners e and
+// e + 1 mod 3), 4 + k vertex k. The Voronoi-region tests of Ericson (Real-Time Collision Detection, 5.1.5):
+// p's region decides, so the feature is the one that holds the closest point, as the pseudonormal theorem
+// needs; a point within rounding of a region's border gets either side, where p - q is (nearly) normal to
+// both features and either pseudonormal signs it.
+int closestFeature(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                   const Eigen::Vector3d& c) {
+  const Eigen::Vector3d ab = b - a, ac = c - a;
+  const Eigen::Vector3d ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return 4;
+  const Eigen::Vector3d bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return 5;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return 1;
+  const Eigen::Vector3d cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return 6;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return 3;
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return 2;
+  return 0;
+}
+
+Eigen::Vector3d unitNormal(const MeshModel& geometry, int t) {
+  const Eigen::Vector3d n = detail::accurateNormal(geometry.corners[t].data());
+  const double length = n.norm();
+  return length > 0 ? Eigen::Vector3d(n / length) : Eigen::Vector3d::Zero();
+}
+
+// The outward pseudonormal of the feature of triangle t that holds p's closest point (not normalized).
+Eigen::Vector3d pseudonormal(const CflModel& model, int t, const Eigen::Vector3d& p_M) {
+  const MeshModel& geometry = model.geometry;
+  const MeshSign& sign = model.sign;
+  const auto& c = geometry.corners[t];
+  const int feature = closestFeature(p_M, c[0], c[1], c[2]);
+  const double orientation = sign.closure.orientation;
+  if (feature == 0) return orientation * unitNormal(geometry, t);
+  if (feature <= 3) {
+    const int e = feature - 1;
+    const int other = sign.neighbors[t][e];
+    Eigen::Vector3d n = unitNormal(geometry, t);
+    if (other >= 0) n += unitNormal(geometry, other);
+    return orientation * n;
+  }
+  const int k = feature - 4;
+  return sign.vertex_normals[sign.welded_vertex[geometry.mesh.triangles[t][k]]];
+}
+
+void validateOptions(const CflModel& model, const PointQueryOptions& options) {
+  if (!(options.upper_bound >= 0)) {
+    std::ostringstream message;
+    message << "PointQueryOptions::upper_bound must be >= 0 (infinity: no bound), got " << options.upper_bound;
+    throw Error(message.str());
+  }
+  if (options.sign_method != SignMethod::kAuto && options.sign_method != SignMethod::kWindingNumber) {
+    throw Error("SignMethod value " + std::to_string(static_cast<int>(options.sign_method)) + " names no method");
+  }
+  if (options.signed_distance && options.sign_method == SignMethod::kAuto && !model.sign.closure.closed) {
+    throw Error("cannot sign distances to this mesh: " + model.sign.closure.reason +
+                " (SignMethod::kWindingNumber signs any mesh by its generalized winding number)");
+  }
+  if (options.signed_distance && options.sign_method == SignMethod::kWindingNumber &&
+      model.sign.dipole_index.size() != model.geometry.bvh.nodes.size()) {
+    throw Error("cannot sign distances to this mesh: its MeshSign was not computed (see analyzeMeshSign)");
+  }
+}
+
+void validatePoint(const Eigen::Vector3d& p_W, const char* what) {
+  if (!p_W.allFinite()) {
+    std::ostringstream message;
+    message << what << " is not finite (" << p_W.x() << ", " << p_W.y() << ", " << p_W.z() << ")";
+    throw Error(message.str());
+  }
+}
+
+// The query proper, once pose, point and options are known to be good.
+PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p_W,
+                            const PointQueryOptions& options) {
+  const Eigen::Vector3d p_M = X_WM.inverse(Eigen::Isometry) * p_W;
+  const double infinity = std::numeric_limits<double>::infinity();
+  double best_squared = std::isinf(options.upper_bound) ? infinity : options.upper_bound * options.upper_bound;
+  int triangle = -1;
+  Eigen::Vector3d closest_M = Eigen::Vector3d::Zero();
+  searchNearest(model, p_M, best_squared, triangle, closest_M);
+  double distance = triangle >= 0 ? std::sqrt(best_squared) : infinity;
+  if (triangle >= 0 && !(distance < options.upper_bound)) triangle = -1, distance = infinity;  // rounding at the bound
+
+  PointDistance result;
+  if (!options.signed_distance) {
+    if (triangle < 0) return result;
+    result.distance = distance;
+    result.triangle = triangle;
+    result.closest_point = X_WM * closest_M;
+    // The kernel's distance and closest point round separately: a tiny distance may come with p == q.
+    const Eigen::Vector3d offset = p_M - closest_M;
+    const double length = offset.norm();
+    const Eigen::Vector3d g_M = length > 0 ? Eigen::Vector3d(offset / length)
+                                           : Eigen::Vector3d(model.sign.closure.orientation * unitNormal(model.geometry, triangle));
+    result.gradient = X_WM.linear() * g_M;
+    return result;
+  }
+
+  // Signed. Beyond the bound only the side is wanted: the winding number, or the exact closest feature.
+  bool inside = false;
+  if (options.sign_method == SignMethod::kWindingNumber) {
+    if (distance > 0) inside = model.sign.closure.orientation * windingNumber(model.geometry, model.sign, p_M) >= 0.5;
+  } else if (triangle >= 0) {
+    inside = distance > 0 && pseudonormal(model, triangle, p_M).dot(p_M - closest_M) < 0;
+  } else {
+    double any_squared = infinity;
+    int any_triangle = -1;
+    Eigen::Vector3d any_closest = Eigen::Vector3d::Zero();
+    searchNearest(model, p_M, any_squared, any_triangle, any_closest);
+    inside = any_triangle >= 0 && any_squared > 0 && pseudonormal(model, any_triangle, p_M).dot(p_M - any_closest) < 0;
+  }
+  if (triangle < 0) {
+    result.distance = inside ? -infinity : infinity;
+    return result;
+  }
+  result.distance = inside ? -distance : distance;
+  result.triangle = triangle;
+  result.closest_point = X_WM * closest_M;
+  Eigen::Vector3d g_M = Eigen::Vector3d::Zero();
+  const Eigen::Vector3d offset = p_M - closest_M;
+  const double offset_length = offset.norm();
+  if (offset_length > 0) {
+    g_M = offset / offset_length;
+    if (inside) g_M = -g_M;
+  } else {
+    // On the surface: the outward pseudonormal, which on a mesh that is not closed may be missing or point
+    // anywhere; the oriented face normal then.
+    const Eigen::Vector3d n = model.sign.closure.closed ? pseudonormal(model, triangle, p_M) : Eigen::Vector3d::Zero();
+    const double length = n.norm();
+    g_M = length > 0 ? Eigen::Vector3d(n / length)
+                     : Eigen::Vector3d(model.sign.closure.orientation * unitNormal(model.geometry, triangle));
+  }
+  result.gradient = X_WM.linear() * g_M;
+  return result;
+}
+
+}  // namespace
+
+PointDistance computePointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p_W,
+                                   const PointQueryOptions& options) {
+  validatePose(X_WM, "X_WM");
+  validatePoint(p_W, "p_W");
+  validateOptions(model, options);
+  return pointDistance(model, X_WM, p_W, options);
+}
+
+void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d* points_W,
+                           std::size_t count, PointDistance* results, const PointQueryOptions& options) {
+  if (count > 0 && (points_W == nullptr || results == nullptr)) {
+    throw Error("computePointDistances: null points or results");
+  }
+  validatePose(X_WM, "X_WM");
+  std::string name;
+  for (std::size_t i = 0; i < count; ++i) {
+    if (!points_W[i].allFinite()) {
+      name = "points_W[" + std::to_string(i) + "]";
+      validatePoint(points_W[i], name.c_str());
+    }
+  }
+  validateOptions(model, options);
+  const int threads = batchThreadCount(options.threads, count);
+  auto query = [&](std::size_t i) { results[i] = pointDistance(model, X_WM, points_W[i], options); };
+  if (threads <= 1) {
+    for (std::size_t i = 0; i < count; ++i) query(i);
+    return;
+  }
+  // As computeDistances (batch_query.cpp): an arena capped at `threads` slots, chunks stolen by idle threads;
+  // each query writes only its own result, so the answers do not depend on the schedule.
+  const std::size_t chunk = std::clamp<std::size_t>(count / (8 * std::size_t(threads)), 1, 256);
+  int before = 0, after = 0;  // Addresses for the TSan annotations only.
+  tsanRelease(&before);
+  tbb::task_arena arena(threads);
+  arena.execute([&] {
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, count, chunk),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+          tsanAcquire(&before);
+          for (std::size_t i = range.begin(); i != range.end(); ++i) query(i);
+          tsanRelease(&after);
+        },
+        tbb::simple_partitioner());
+  });
+  tsanAcquire(&after);
+}
+
+}  // namespace cfl

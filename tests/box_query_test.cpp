@@ -1,0 +1,62 @@
+// computeBoxDistance (box_query.h) against brute force: every mesh triangle against the box's 12 triangles with
+// the exact triangle kernel, and 0 when a mesh triangle lies wholly inside the box.
+
+#include "cfl/box_query.h"
+#include "cfl/cfl_query.h"
+#include "cfl/error.h"
+#include "support/test_meshes.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+#include <string>
+
+namespace cfl {
+namespace {
+
+TEST(BoxQuery, EqualsBruteForceApartTouchingAndAroundTheMesh) {
+  std::mt19937_64 rng(1);
+  std::normal_distribution<double> gauss;
+  for (const auto& [name, mesh] : std::vector<std::pair<std::string, TriangleMesh>>{
+           {"knot", test::makeTorusKnot(2, 3, 1.0, 0.3, 64, 6)},
+           {"sheet", test::makeWavySheet(1.5, 0.4, 16)},
+           {"soup", test::makeTriangleSoup(300, 5)}}) {
+    const CflModel model = buildCflModel(mesh);
+    const double size = model.geometry.bounds.diagonal();
+    int apart = 0, touching = 0;
+    for (int i = 0; i < 150; ++i) {
+      const Eigen::Isometry3d X_WM = test::randomPose(rng, 1.0);
+      Eigen::Isometry3d X_WB = test::randomPose(rng, 1.0);
+      const Eigen::Vector3d on = test::randomPointOnTriangle(mesh, int(rng() % mesh.triangles.size()), rng);
+      X_WB.translation() = X_WM * on + Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)) * 0.05 * size;
+      Eigen::Vector3d half(0.02 + 0.01 * (i % 3), 0.03, 0.015);
+      half *= size;
+      if (i % 25 == 0) half = Eigen::Vector3d::Constant(size);  // The mesh wholly inside.
+      const Eigen::Vector3d min = -half, max = half;
+      const MeshModel box = makeMeshModel(test::makeBox(min, max));
+      double expected = bruteForceDistance(model.geometry, X_WM, box, X_WB).distance;
+      for (const auto& v : mesh.vertices)
+        if (((X_WB.inverse() * (X_WM * v)).cwiseAbs() - half).maxCoeff() <= 0) expected = 0;
+      const BoxDistance got = computeBoxDistance(model, X_WM, X_WB, half);
+      const std::string at = name + " pose " + std::to_string(i);
+      ASSERT_GE(got.triangle, 0) << at;
+      EXPECT_NEAR(got.distance, expected, 1e-9 * size) << at;
+      EXPECT_NEAR((got.box_point - got.mesh_point).norm(), got.distance, 1e-9 * size) << at;
+      (expected > 0 ? apart : touching)++;
+      if (expected > 0) EXPECT_EQ(computeBoxDistance(model, X_WM, X_WB, half, got.distance * (1 - 1e-9)).triangle, -1) << at;
+    }
+    EXPECT_GT(apart, 20) << name;
+    EXPECT_GT(touching, 10) << name;
+  }
+}
+
+TEST(BoxQuery, BadInputThrowsCflError) {
+  const CflModel model = buildCflModel(test::makeTorusKnot(2, 3, 1.0, 0.3, 32, 6));
+  const Eigen::Isometry3d I = Eigen::Isometry3d::Identity();
+  EXPECT_THROW(computeBoxDistance(model, I, I, Eigen::Vector3d(1, 0, 1)), Error);
+  EXPECT_THROW(computeBoxDistance(model, I, I, Eigen::Vector3d(1, NAN, 1)), Error);
+  EXPECT_THROW(computeBoxDistance(model, I, I, Eigen::Vector3d::Ones(), -1), Error);
+}
+
+}  // namespace
+}  // namespace cfl

@@ -1,0 +1,353 @@
+// computePointDistance(s) against independent references: brute force over every triangle for the distance,
+// the brute-force winding number and closed forms for the sign.
+
+#include "cfl/error.h"
+#include "cfl/point_query.h"
+#include "cfl/triangle_distance.h"
+#include "support/sign_references.h"
+#include "support/test_meshes.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <array>
+#include <limits>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace cfl {
+namespace {
+
+using test::NamedMesh;
+
+TriangleMesh unitCube() { return test::makeBox(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones()); }
+
+// Points in frame M of every kind a query meets: just off the surface (down to 1e-6 of the size), in the
+// mesh's box, elsewhere in the regions, and outside the regions.
+std::vector<Eigen::Vector3d> samplePoints(const CflModel& model, int count, test::Rng& rng) {
+  const TriangleMesh& mesh = model.geometry.mesh;
+  const Aabb box = model.geometry.bounds;
+  const Aabb regions = model.regions.bounds();
+  const double size = box.diagonal();
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::normal_distribution<double> gauss;
+  std::uniform_int_distribution<int> pick(0, int(mesh.triangles.size()) - 1);
+  auto inBox = [&](const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
+    return Eigen::Vector3d(lo.x() + unit(rng) * (hi.x() - lo.x()), lo.y() + unit(rng) * (hi.y() - lo.y()),
+                           lo.z() + unit(rng) * (hi.z() - lo.z()));
+  };
+  std::vector<Eigen::Vector3d> points;
+  for (int i = 0; i < count; ++i) {
+    const Eigen::Vector3d direction = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+    switch (i % 4) {
+      case 0:
+        points.push_back(test::randomPointOnTriangle(mesh, pick(rng), rng) +
+                         size * std::pow(10.0, -6 + 5 * unit(rng)) * direction);
+        break;
+      case 1:
+        points.push_back(inBox(box.min - 0.1 * box.size(), box.max + 0.1 * box.size()));
+        break;
+      case 2:
+        points.push_back(inBox(regions.min, regions.max));
+        break;
+      default:
+        points.push_back(regions.center() + regions.diagonal() * (0.6 + 2 * unit(rng)) * direction);
+    }
+  }
+  return points;
+}
+
+double bruteForceSquared(const MeshModel& geometry, const Eigen::Vector3d& p_M) {
+  double best = std::numeric_limits<double>::infinity();
+  for (const auto& c : geometry.corners) best = std::min(best, pointTriangleSquaredDistance(p_M, c[0], c[1], c[2]));
+  return best;
+}
+
+std::vector<NamedMesh> unsignedMeshes() {
+  return {
+      {"sphere", test::makeSphere()},
+      {"knot", test::makeTorusKnot(2, 3, 1.0, 0.3, 48, 6)},
+      {"cube soup", test::toSoup(unitCube())},
+      {"hemisphere", test::makeHemisphere(1.0, 6, 16)},
+      {"messy", test::makeMessyMesh()},
+      {"self_intersecting", test::makeSelfIntersectingMesh()},
+      {"bunny", test::loadBunny()},
+  };
+}
+
+TEST(PointQuery, UnsignedDistanceMatchesBruteForce) {
+  test::Rng rng(11);
+  for (const NamedMesh& named : unsignedMeshes()) {
+    SCOPED_TRACE(named.name);
+    const CflModel model = buildCflModel(named.mesh);
+    const Eigen::Isometry3d X_WM = test::randomPose(rng, 5.0);
+    const double size = model.geometry.bounds.diagonal();
+    int listed = 0;  // points whose leaf has a list: the path this test is mostly about
+    const std::vector<Eigen::Vector3d> points = samplePoints(model, 2000, rng);
+    for (const Eigen::Vector3d& p_M : points) {
+      const Aabb regions = model.regions.bounds();
+      if ((p_M.array() >= regions.min.array()).all() && (p_M.array() <= regions.max.array()).all()) {
+        listed += model.regions.hasList(model.regions.locate(p_M).leaf);
+      }
+    }
+    EXPECT_GT(listed, 1000);
+    for (const Eigen::Vector3d& p_M : points) {
+      const Eigen::Vector3d p_W = X_WM * p_M;
+      const PointDistance got = computePointDistance(model, X_WM, p_W);
+      const double expected = std::sqrt(bruteForceSquared(model.geometry, X_WM.inverse(Eigen::Isometry) * p_W));
+      ASSERT_NEAR(got.distance, expected, 1e-12 * (size + expected)) << "p_M " << p_M.transpose();
+      // And against the test suite's own kernel.
+      ASSERT_NEAR(got.distance, test::referencePointMeshDistance(named.mesh, p_W, X_WM), 1e-9 * (size + expected));
+      ASSERT_GE(got.triangle, 0);
+      EXPECT_NEAR((got.closest_point - p_W).norm(), got.distance, 1e-9 * (size + expected));
+      const auto& c = model.geometry.corners[got.triangle];
+      const Eigen::Vector3d closest_M = X_WM.inverse(Eigen::Isometry) * got.closest_point;
+      EXPECT_NEAR(std::sqrt(pointTriangleSquaredDistance(closest_M, c[0], c[1], c[2])), 0, 1e-9 * size);
+      if (got.distance > 1e-9 * size) {
+        EXPECT_NEAR(got.gradient.norm(), 1, 1e-9);
+        EXPECT_NEAR(got.gradient.dot(p_W - got.closest_point), got.distance, 1e-9 * (size + expected));
+      }
+    }
+  }
+}
+
+TEST(PointQuery, UpperBoundKeepsOnlyCloserTriangles) {
+  test::Rng rng(12);
+  const CflModel model = buildCflModel(test::makeTorusKnot(2, 3, 1.0, 0.3, 48, 6));
+  const Eigen::Isometry3d X_WM = test::randomPose(rng, 2.0);
+  PointQueryOptions bounded;
+  bounded.upper_bound = 0.2;
+  for (const Eigen::Vector3d& p_M : samplePoints(model, 2000, rng)) {
+    const Eigen::Vector3d p_W = X_WM * p_M;
+    const PointDistance full = computePointDistance(model, X_WM, p_W);
+    const PointDistance got = computePointDistance(model, X_WM, p_W, bounded);
+    if (full.distance < 0.2 * (1 - 1e-12)) {
+      EXPECT_EQ(got.distance, full.distance);
+      EXPECT_EQ(got.triangle, full.triangle);
+    } else if (full.distance > 0.2 * (1 + 1e-12)) {
+      EXPECT_EQ(got.distance, std::numeric_limits<double>::infinity());
+      EXPECT_EQ(got.triangle, -1);
+    }
+  }
+  PointQueryOptions zero;
+  zero.upper_bound = 0;
+  EXPECT_EQ(computePointDistance(model, X_WM, X_WM * model.geometry.corners[0][0], zero).triangle, -1);
+  PointQueryOptions negative;
+  negative.upper_bound = -1;
+  EXPECT_THROW(computePointDistance(model, X_WM, Eigen::Vector3d::Zero(), negative), Error);
+}
+
+// Sharp and concave features, where a face normal alone signs wrongly and pseudonormals are needed: a
+// tetrahedron (dihedral angles under 90 degrees), and a cube whose top is a four-triangle fan around a
+// center pushed in (a concave vertex and edges) or pulled out into a spike.
+TriangleMesh tetrahedron() {
+  TriangleMesh mesh;
+  mesh.vertices = {{1, 1, 1}, {1, -1, -1}, {-1, 1, -1}, {-1, -1, 1}};
+  mesh.triangles = {{0, 1, 2}, {0, 3, 1}, {0, 2, 3}, {1, 3, 2}};
+  return mesh;
+}
+
+TriangleMesh cubeWithTopAt(double apex_height) {
+  TriangleMesh cube = unitCube();
+  std::vector<std::array<int, 3>> kept;
+  for (const auto& t : cube.triangles) {
+    if (!(t[0] >= 4 && t[1] >= 4 && t[2] >= 4)) kept.push_back(t);  // drop the top face (vertices 4 to 7)
+  }
+  cube.triangles = kept;
+  const int c = int(cube.vertices.size());
+  cube.vertices.push_back({0.5, 0.5, apex_height});
+  for (const auto& t : std::vector<std::array<int, 3>>{{4, 5, c}, {5, 7, c}, {7, 6, c}, {6, 4, c}}) cube.triangles.push_back(t);
+  return cube;
+}
+
+// Signs on closed meshes against the brute-force winding number, away from the surface where it is
+// immaterial.
+TEST(PointQuery, SignsMatchTheWindingNumberOnClosedMeshes) {
+  const std::vector<NamedMesh> meshes = {
+      {"sphere", test::makeSphere()},
+      {"torus", test::makeTorus(1.0, 0.35, 16, 8)},
+      {"knot", test::makeTorusKnot(2, 3, 1.0, 0.3, 48, 6)},
+      {"cube soup", test::toSoup(unitCube())},
+      {"inside-out knot", test::flipped(test::makeTorusKnot(2, 3, 1.0, 0.3, 48, 6))},
+      {"tetrahedron", tetrahedron()},
+      {"dented cube", cubeWithTopAt(0.4)},
+      {"spiked cube", cubeWithTopAt(4.0)},
+      {"bunny", test::loadBunny()},
+  };
+  test::Rng rng(13);
+  for (const NamedMesh& named : meshes) {
+    SCOPED_TRACE(named.name);
+    const CflModel model = buildCflModel(named.mesh);
+    ASSERT_TRUE(model.sign.closure.closed) << model.sign.closure.reason;
+    const Eigen::Isometry3d X_WM = test::randomPose(rng, 5.0);
+    const double size = model.geometry.bounds.diagonal();
+    for (SignMethod method : {SignMethod::kAuto, SignMethod::kWindingNumber}) {
+      PointQueryOptions options;
+      options.signed_distance = true;
+      options.sign_method = method;
+      int inside_count = 0;
+      for (const Eigen::Vector3d& p_M : samplePoints(model, 2000, rng)) {
+        const Eigen::Vector3d p_W = X_WM * p_M;
+        const PointDistance got = computePointDistance(model, X_WM, p_W, options);
+        const PointDistance plain = computePointDistance(model, X_WM, p_W);
+        ASSERT_EQ(std::abs(got.distance), plain.distance);
+        if (plain.distance < 1e-9 * size) continue;
+        const double w = test::referenceWindingNumber(named.mesh, p_M);
+        ASSERT_NEAR(std::abs(w), std::round(std::abs(w)), 1e-6);
+        const bool inside = std::abs(w) > 0.5;
+        inside_count += inside;
+        ASSERT_EQ(got.distance < 0, inside) << "p_M " << p_M.transpose() << " distance " << got.distance << " w " << w
+                                            << " method " << int(method);
+        // The gradient points away from the closest point outside, towards it inside.
+        EXPECT_NEAR(got.gradient.dot(p_W - got.closest_point), got.distance, 1e-9 * (size + plain.distance));
+      }
+      EXPECT_GT(inside_count, 50);
+    }
+  }
+}
+
+TEST(PointQuery, UnitCubeInsideIsMinusTheDistanceToTheNearestFace) {
+  test::Rng rng(14);
+  for (bool inside_out : {false, true}) {
+    SCOPED_TRACE(inside_out ? "inside out" : "outward");
+    const CflModel model = buildCflModel(inside_out ? test::flipped(unitCube()) : unitCube());
+    const Eigen::Isometry3d X_WM = test::randomPose(rng, 3.0);
+    PointQueryOptions options;
+    options.signed_distance = true;
+    std::uniform_real_distribution<double> coordinate(-0.5, 1.5);
+    for (int i = 0; i < 3000; ++i) {
+      const Eigen::Vector3d p_M(coordinate(rng), coordinate(rng), coordinate(rng));
+      const Eigen::Vector3d clamped = p_M.cwiseMax(0.0).cwiseMin(1.0);
+      double expected = (p_M - clamped).norm();
+      if (expected == 0) {
+        expected = -std::min({p_M.x(), 1 - p_M.x(), p_M.y(), 1 - p_M.y(), p_M.z(), 1 - p_M.z()});
+      }
+      const PointDistance got = computePointDistance(model, X_WM, X_WM * p_M, options);
+      ASSERT_NEAR(got.distance, expected, 1e-12) << "p_M " << p_M.transpose();
+    }
+    // On the surface: distance 0, gradient the outward normal.
+    const PointDistance on_face = computePointDistance(model, X_WM, X_WM * Eigen::Vector3d(0.3, 0.6, 1.0), options);
+    EXPECT_NEAR(on_face.distance, 0, 1e-15);
+    EXPECT_NEAR((on_face.gradient - X_WM.linear() * Eigen::Vector3d::UnitZ()).norm(), 0, 1e-12);
+    // Beyond an upper bound the side is still known.
+    options.upper_bound = 0.1;
+    EXPECT_EQ(computePointDistance(model, X_WM, X_WM * Eigen::Vector3d::Constant(0.5), options).distance,
+              -std::numeric_limits<double>::infinity());
+    EXPECT_EQ(computePointDistance(model, X_WM, X_WM * Eigen::Vector3d::Constant(5), options).distance,
+              std::numeric_limits<double>::infinity());
+  }
+}
+
+TEST(PointQuery, SignedRequestOnAnOpenMeshNamesTheBoundary) {
+  const CflModel model = buildCflModel(test::makeHemisphere(1.0, 6, 16));
+  PointQueryOptions options;
+  options.signed_distance = true;
+  try {
+    computePointDistance(model, Eigen::Isometry3d::Identity(), Eigen::Vector3d::Zero(), options);
+    FAIL() << "no error";
+  } catch (const Error& error) {
+    const std::string message = error.what();
+    EXPECT_NE(message.find("cannot sign distances to this mesh: open:"), std::string::npos) << message;
+    EXPECT_NE(message.find("boundary"), std::string::npos) << message;
+    EXPECT_NE(message.find("SignMethod::kWindingNumber"), std::string::npos) << message;
+  }
+  // Unsigned is fine.
+  EXPECT_NO_THROW(computePointDistance(model, Eigen::Isometry3d::Identity(), Eigen::Vector3d::Zero()));
+}
+
+TEST(PointQuery, WindingNumberSignsASphereWithAHole) {
+  TriangleMesh sphere = test::makeSphere(1.0, 12, 24);
+  sphere.triangles.erase(sphere.triangles.begin() + 100);
+  for (bool inside_out : {false, true}) {
+    SCOPED_TRACE(inside_out ? "inside out" : "outward");
+    const CflModel model = buildCflModel(inside_out ? test::flipped(sphere) : sphere);
+    ASSERT_FALSE(model.sign.closure.closed);
+    test::Rng rng(15);
+    const Eigen::Isometry3d X_WM = test::randomPose(rng, 3.0);
+    PointQueryOptions options;
+    options.signed_distance = true;
+    options.sign_method = SignMethod::kWindingNumber;
+    std::normal_distribution<double> gauss;
+    std::uniform_real_distribution<double> unit(0, 1);
+    for (int i = 0; i < 2000; ++i) {
+      const Eigen::Vector3d direction = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+      const bool inside = i % 2 == 0;
+      const double radius = inside ? 0.8 * unit(rng) : 1.2 + 5 * unit(rng);
+      const PointDistance got = computePointDistance(model, X_WM, X_WM * (radius * direction), options);
+      ASSERT_EQ(got.distance < 0, inside) << "radius " << radius;
+    }
+  }
+}
+
+TEST(PointQuery, BatchEqualsSerialBitForBit) {
+  test::Rng rng(16);
+  const CflModel model = buildCflModel(test::makeTorusKnot(2, 3, 1.0, 0.3, 48, 6));
+  const Eigen::Isometry3d X_WM = test::randomPose(rng, 2.0);
+  std::vector<Eigen::Vector3d> points;
+  for (const Eigen::Vector3d& p_M : samplePoints(model, 3000, rng)) points.push_back(X_WM * p_M);
+  for (bool signed_distance : {false, true}) {
+    PointQueryOptions options;
+    options.signed_distance = signed_distance;
+    std::vector<PointDistance> serial;
+    for (const auto& p : points) serial.push_back(computePointDistance(model, X_WM, p, options));
+    for (int threads : {1, 2}) {
+      options.threads = threads;
+      std::vector<PointDistance> batch(points.size());
+      computePointDistances(model, X_WM, points.data(), points.size(), batch.data(), options);
+      for (std::size_t i = 0; i < points.size(); ++i) {
+        ASSERT_EQ(std::memcmp(&batch[i].distance, &serial[i].distance, sizeof(double)), 0) << i;
+        ASSERT_EQ(batch[i].triangle, serial[i].triangle) << i;
+        ASSERT_EQ(batch[i].closest_point, serial[i].closest_point) << i;
+        ASSERT_EQ(batch[i].gradient, serial[i].gradient) << i;
+      }
+    }
+  }
+}
+
+TEST(PointQuery, ConcurrentCallersGetTheSerialAnswers) {
+  test::Rng rng(17);
+  const CflModel model = buildCflModel(test::makeTorusKnot(2, 3, 1.0, 0.3, 48, 6));
+  const Eigen::Isometry3d X_WM = test::randomPose(rng, 2.0);
+  const std::vector<Eigen::Vector3d> points = samplePoints(model, 1000, rng);
+  PointQueryOptions options;
+  options.signed_distance = true;
+  options.sign_method = SignMethod::kWindingNumber;
+  std::vector<double> serial;
+  for (const auto& p : points) serial.push_back(computePointDistance(model, X_WM, p, options).distance);
+  std::vector<double> a(points.size()), b(points.size());
+  std::thread first([&] {
+    for (std::size_t i = 0; i < points.size(); ++i) a[i] = computePointDistance(model, X_WM, points[i], options).distance;
+  });
+  std::thread second([&] {
+    for (std::size_t i = points.size(); i-- > 0;) b[i] = computePointDistance(model, X_WM, points[i], options).distance;
+  });
+  first.join();
+  second.join();
+  EXPECT_EQ(a, serial);
+  EXPECT_EQ(b, serial);
+}
+
+TEST(PointQuery, BadPointIsNamedByIndex) {
+  const CflModel model = buildCflModel(unitCube());
+  std::vector<Eigen::Vector3d> points(5, Eigen::Vector3d(2, 0, 0));
+  points[3].y() = std::numeric_limits<double>::quiet_NaN();
+  std::vector<PointDistance> results(points.size());
+  results[0].triangle = 42;
+  try {
+    computePointDistances(model, Eigen::Isometry3d::Identity(), points.data(), points.size(), results.data());
+    FAIL() << "no error";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find("points_W[3]"), std::string::npos) << error.what();
+  }
+  EXPECT_EQ(results[0].triangle, 42);  // untouched
+  EXPECT_THROW(computePointDistance(model, Eigen::Isometry3d::Identity(), points[3]), Error);
+  Eigen::Isometry3d scaled = Eigen::Isometry3d::Identity();
+  scaled.linear() *= 2;
+  EXPECT_THROW(computePointDistance(model, scaled, Eigen::Vector3d::Zero()), Error);
+}
+
+}  // namespace
+}  // namespace cfl

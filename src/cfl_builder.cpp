@@ -593,7 +593,8 @@ class SubtreeBuilder {
     std::array<float, 8> corners;
     for (int n = 0; n < 8; ++n) corners[n] = lowerFloat(corner_distance[n]);
     out.corner_distance.push_back(corners);
-    budget_.bytes += std::int64_t(kLeafBytes + (stored ? length * 5 : 0));
+    // A stored list: its base id, and per entry a 16-bit id and a bound (RegionTree::list_entry_ids).
+    budget_.bytes += std::int64_t(kLeafBytes + (stored ? 4 + length * 3 : 0));
   }
 
  private:
@@ -831,19 +832,19 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       auto& same_hash = lists_by_hash[hash];
       std::uint32_t found = std::numeric_limits<std::uint32_t>::max();
       for (std::uint32_t id : same_hash) {
-        const std::uint32_t begin = tree.list_offsets[id], end = tree.list_offsets[id + 1];
-        if (end - begin == length && list_depth[id] == depth &&
-            std::equal(list, list + length, tree.list_triangles.begin() + begin) &&
-            std::equal(bounds, bounds + length, tree.list_entry_bounds.begin() + begin)) {
+        if (tree.listLength(id) != length || list_depth[id] != depth ||
+            !std::equal(bounds, bounds + length, tree.list_entry_bounds.begin() + tree.list_offsets[id])) {
+          continue;
+        }
+        bool same = true;
+        for (std::uint32_t n = 0; n < length && same; ++n) same = tree.listTriangle(id, n) == list[n];
+        if (same) {
           found = id;
           break;
         }
       }
       if (found == std::numeric_limits<std::uint32_t>::max()) {
-        found = static_cast<std::uint32_t>(tree.list_offsets.size() - 1);
-        tree.list_triangles.insert(tree.list_triangles.end(), list, list + length);
-        tree.list_entry_bounds.insert(tree.list_entry_bounds.end(), bounds, bounds + length);
-        tree.list_offsets.push_back(static_cast<std::uint32_t>(tree.list_triangles.size()));
+        found = tree.appendList(list, bounds, length);
         list_depth.push_back(depth);
         same_hash.push_back(found);
       }
@@ -851,7 +852,8 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
     }
     subtree = Subtree();  // release as we go
   }
-  tree.list_triangles.shrink_to_fit();
+  tree.list_entry_ids.shrink_to_fit();
+  tree.list_high_ids.shrink_to_fit();
   tree.list_entry_bounds.shrink_to_fit();
   tree.list_offsets.shrink_to_fit();
 
@@ -864,7 +866,8 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   stats.coarsened = budget.exceeded;
   stats.memory_bytes = capacityBytes(tree.nodes) + capacityBytes(tree.leaf_list) + capacityBytes(tree.leaf_lower_bound) +
                        capacityBytes(tree.leaf_corner_distance) + capacityBytes(tree.list_offsets) +
-                       capacityBytes(tree.list_triangles) + capacityBytes(tree.list_entry_bounds) +
+                       capacityBytes(tree.list_entry_ids) +
+                       capacityBytes(tree.list_high_ids) + capacityBytes(tree.list_entry_bounds) +
                        capacityBytes(geometry.mesh.vertices) + capacityBytes(geometry.mesh.triangles) +
                        capacityBytes(geometry.corners) + capacityBytes(geometry.spheres) + capacityBytes(geometry.planes) +
                        capacityBytes(geometry.leaf_corners) + capacityBytes(geometry.leaf_spheres) +

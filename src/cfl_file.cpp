@@ -259,6 +259,57 @@ std::string dimsText(const std::array<int, 3>& dims) {
 // exact. Shared by the writer (so a broken model is never written) and the loader (so a broken file is never
 // used). The mesh itself is checked by validateMesh. Everything is checked before anything that depends on
 // it is read: the root grid before the nodes, the nodes before the leaves, the offsets before the lists.
+// The lists' offsets against the sizes of the arrays they index (`ids_name`: what the caller calls its ids).
+template <class Fail>
+void validateListOffsets(const std::vector<std::uint32_t>& offsets, std::size_t id_count, const char* ids_name,
+                         std::size_t bound_count, const Fail& fail) {
+  if (offsets.empty()) fail("list_offsets is empty, needs at least its leading 0");
+  if (offsets.front() != 0) fail("list_offsets[0] is " + std::to_string(offsets.front()) + ", must be 0");
+  if (offsets.back() != id_count) {
+    fail("last list offset is " + std::to_string(offsets.back()) + ", but " + ids_name + " has " +
+         std::to_string(id_count) + " entries");
+  }
+  if (bound_count != id_count) {
+    fail(std::string(ids_name) + " has " + std::to_string(id_count) + " entries, but list_entry_bounds has " +
+         std::to_string(bound_count));
+  }
+  // Offsets first, all of them: a list's contents are only meaningful once its bounds are.
+  for (std::size_t list = 0; list + 1 < offsets.size(); ++list) {
+    if (offsets[list + 1] < offsets[list]) {
+      fail("list_offsets not increasing: list " + std::to_string(list) + " starts at " + std::to_string(offsets[list]) +
+           " and ends at " + std::to_string(offsets[list + 1]));
+    }
+  }
+}
+
+// Every list non-empty, its ids in range and sorted by (entry bound, id). `id_at(list, n)`: entry n's id;
+// the offsets have passed validateListOffsets.
+template <class IdAt, class Fail>
+void validateListContents(const std::vector<std::uint32_t>& offsets, const IdAt& id_at,
+                          const std::vector<std::uint8_t>& bounds, std::size_t triangle_count, const Fail& fail) {
+  for (std::size_t list = 0; list + 1 < offsets.size(); ++list) {
+    const std::uint32_t begin = offsets[list], end = offsets[list + 1];
+    if (end == begin) fail("list " + std::to_string(list) + " is empty (every CFL holds at least one triangle)");
+    std::int64_t previous = -1;
+    int previous_bound = 0;
+    for (std::uint32_t i = begin; i < end; ++i) {
+      const std::int32_t id = id_at(std::uint32_t(list), i - begin);
+      const int bound = bounds[i];
+      if (id < 0 || static_cast<std::size_t>(id) >= triangle_count) {
+        fail("list " + std::to_string(list) + " holds triangle id " + std::to_string(id) + ", out of range [0, " +
+             std::to_string(triangle_count) + ")");
+      }
+      if (bound < previous_bound || (bound == previous_bound && id <= previous)) {
+        fail("list " + std::to_string(list) + " is not sorted by (entry bound, id) (triangle " + std::to_string(id) +
+             " with bound " + std::to_string(bound) + " after triangle " + std::to_string(previous) +
+             " with bound " + std::to_string(previous_bound) + ")");
+      }
+      previous = id;
+      previous_bound = bound;
+    }
+  }
+}
+
 void validateModelStructure(const CflModel& model, const std::string& context) {
   const auto fail = [&](const std::string& message) { throw Error(context + ": " + message); };
   const RegionTree& tree = model.regions;
@@ -369,48 +420,27 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
          std::to_string(deepest));
   }
 
-  // The lists.
+  // The lists: their encoding (RegionTree::list_entry_ids), then the ids they decode to.
   const auto& offsets = tree.list_offsets;
   // No list at all is possible when every leaf is one without a list (RegionTree::kNoList).
   if (offsets.empty()) fail("list_offsets is empty, needs at least its leading 0");
-  if (offsets.front() != 0) fail("list_offsets[0] is " + std::to_string(offsets.front()) + ", must be 0");
-  if (offsets.back() != tree.list_triangles.size()) {
-    fail("last list offset is " + std::to_string(offsets.back()) + ", but list_triangles has " +
-         std::to_string(tree.list_triangles.size()) + " entries");
-  }
-  if (tree.list_entry_bounds.size() != tree.list_triangles.size()) {
-    fail("list_triangles has " + std::to_string(tree.list_triangles.size()) + " entries, but list_entry_bounds has " +
-         std::to_string(tree.list_entry_bounds.size()));
-  }
   const std::size_t list_count = offsets.size() - 1;
-  // Offsets first, all of them: a list's contents are only meaningful once its bounds are.
+  // Two slots of list_entry_ids per list hold its base (RegionTree::listIdsBegin), one per entry its id.
+  if (tree.list_entry_ids.size() < 2 * list_count) {
+    fail("list_entry_ids has " + std::to_string(tree.list_entry_ids.size()) + " entries, fewer than the bases of " +
+         std::to_string(list_count) + " lists");
+  }
+  validateListOffsets(offsets, tree.list_entry_ids.size() - 2 * list_count, "list_entry_ids (bases aside)",
+                      tree.list_entry_bounds.size(), fail);
   for (std::size_t list = 0; list < list_count; ++list) {
-    if (offsets[list + 1] < offsets[list]) {
-      fail("list_offsets not increasing: list " + std::to_string(list) + " starts at " + std::to_string(offsets[list]) +
-           " and ends at " + std::to_string(offsets[list + 1]));
+    const std::int32_t base = tree.listBase(std::uint32_t(list));
+    if (base < 0 && std::uint64_t(std::uint32_t(~base)) + tree.listLength(std::uint32_t(list)) > tree.list_high_ids.size()) {
+      fail("list " + std::to_string(list) + " reads list_high_ids past its " + std::to_string(tree.list_high_ids.size()) +
+           " entries");
     }
   }
-  for (std::size_t list = 0; list < list_count; ++list) {
-    const std::uint32_t begin = offsets[list], end = offsets[list + 1];
-    if (end == begin) fail("list " + std::to_string(list) + " is empty (every CFL holds at least one triangle)");
-    std::int64_t previous = -1;
-    int previous_bound = 0;
-    for (std::uint32_t i = begin; i < end; ++i) {
-      const std::int32_t id = tree.list_triangles[i];
-      const int bound = tree.list_entry_bounds[i];
-      if (id < 0 || static_cast<std::size_t>(id) >= triangle_count) {
-        fail("list " + std::to_string(list) + " holds triangle id " + std::to_string(id) + ", out of range [0, " +
-             std::to_string(triangle_count) + ")");
-      }
-      if (bound < previous_bound || (bound == previous_bound && id <= previous)) {
-        fail("list " + std::to_string(list) + " is not sorted by (entry bound, id) (triangle " + std::to_string(id) +
-             " with bound " + std::to_string(bound) + " after triangle " + std::to_string(previous) +
-             " with bound " + std::to_string(previous_bound) + ")");
-      }
-      previous = id;
-      previous_bound = bound;
-    }
-  }
+  validateListContents(offsets, [&](std::uint32_t list, std::uint32_t n) { return tree.listTriangle(list, n); },
+                       tree.list_entry_bounds, triangle_count, fail);
 
   // The leaves.
   std::int64_t without_list = 0;
@@ -493,7 +523,9 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
   const std::uint64_t mesh_size = 16 + 24 * mesh.vertices.size() + 12 * mesh.triangles.size();
   const std::uint64_t node_size = 8 + 4 * tree.nodes.size();
   const std::uint64_t leaf_size = 8 + kLeafRecordSize * tree.leaf_list.size();
-  const std::uint64_t list_size = 16 + 4 * (tree.list_offsets.size() + tree.list_triangles.size());
+  // The file keeps every id in 4 bytes, whatever RegionTree's encoding in memory.
+  const std::vector<std::int32_t> list_triangles = tree.listTriangles();
+  const std::uint64_t list_size = 16 + 4 * (tree.list_offsets.size() + list_triangles.size());
   const std::uint64_t entry_bounds_size = 8 + tree.list_entry_bounds.size();
   const std::uint64_t statistics_size = kStatisticsFixedSize + 8 * s.leaves_per_depth.size();
   const std::uint64_t payload_size = 7 * kSectionHeaderSize + mesh_size + kTreeSectionSize + node_size + leaf_size +
@@ -538,9 +570,9 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
 
   out.section(kTagList, list_size);
   out.u64(tree.list_offsets.size());
-  out.u64(tree.list_triangles.size());
+  out.u64(list_triangles.size());
   out.array(tree.list_offsets);
-  out.array(tree.list_triangles);
+  out.array(list_triangles);
 
   out.section(kTagEntryBounds, entry_bounds_size);
   out.u64(tree.list_entry_bounds.size());
@@ -630,6 +662,7 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
 
   CflModel model;
   RegionTree& tree = model.regions;
+  std::vector<std::int32_t> list_triangles;  // as the file stores them; encoded once read
   TriangleMesh mesh;
   bool seen_mesh = false, seen_tree = false, seen_nodes = false, seen_leaves = false, seen_list = false,
        seen_entry_bounds = false, seen_statistics = false;
@@ -700,8 +733,8 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
       }
       tree.list_offsets.resize(offset_count);
       in.array(tree.list_offsets, "list_offsets");
-      tree.list_triangles.resize(id_count);
-      in.array(tree.list_triangles, "list_triangles");
+      list_triangles.resize(id_count);
+      in.array(list_triangles, "list_triangles");
     } else if (tag == kTagEntryBounds) {
       once(seen_entry_bounds);
       tree.list_entry_bounds.resize(in.count(1, "list_entry_bounds size"));
@@ -737,6 +770,23 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
     model.geometry = makeMeshModel(std::move(mesh));
   } catch (const Error& error) {
     fail(std::string("MESH section: ") + error.what());
+  }
+  // The lists as stored, checked before RegionTree::appendList encodes them (it needs ids >= 0).
+  {
+    validateListOffsets(tree.list_offsets, list_triangles.size(), "list_triangles", tree.list_entry_bounds.size(), fail);
+    validateListContents(
+        tree.list_offsets, [&](std::uint32_t list, std::uint32_t n) { return list_triangles[tree.list_offsets[list] + n]; },
+        tree.list_entry_bounds, model.geometry.mesh.triangles.size(), fail);
+    const std::vector<std::uint32_t> offsets = std::move(tree.list_offsets);
+    const std::vector<std::uint8_t> bounds = std::move(tree.list_entry_bounds);
+    tree.list_offsets.assign(1, 0);
+    tree.list_entry_bounds.clear();
+    for (std::size_t list = 0; list + 1 < offsets.size(); ++list) {
+      tree.appendList(list_triangles.data() + offsets[list], bounds.data() + offsets[list], offsets[list + 1] - offsets[list]);
+    }
+    tree.list_offsets.shrink_to_fit();
+    tree.list_entry_ids.shrink_to_fit();
+    tree.list_high_ids.shrink_to_fit();
   }
   model.sign = analyzeMeshSign(model.geometry);
   validateModelStructure(model, name);

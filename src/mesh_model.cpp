@@ -53,6 +53,9 @@ MeshModel makeMeshModel(TriangleMesh mesh) {
   validateMesh(mesh);
   MeshModel model;
   model.mesh = std::move(mesh);
+  // A mesh read from a file grew by push_back: up to half of its capacity is slack.
+  model.mesh.vertices.shrink_to_fit();
+  model.mesh.triangles.shrink_to_fit();
   model.corners.resize(model.mesh.triangles.size());
   for (std::size_t t = 0; t < model.mesh.triangles.size(); ++t) {
     for (int corner = 0; corner < 3; ++corner) model.corners[t][corner] = model.mesh.vertices[model.mesh.triangles[t][corner]];

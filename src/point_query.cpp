@@ -76,8 +76,8 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       // No point of the leaf is closer to the mesh than its lower bound.
       const double leaf_bound = double(regions.leaf_lower_bound[cell.leaf]) * kBoundShrink;
       if (leaf_bound * leaf_bound >= best_squared && leaf_bound > 0) return;
-      const std::int32_t* begin = regions.listBegin(cell.leaf);
-      const std::int32_t* end = regions.listEnd(cell.leaf);
+      const std::uint32_t list = regions.leaf_list[cell.leaf];
+      const std::uint32_t length = regions.listLength(list);
       const std::uint8_t* bounds = regions.listBoundsBegin(cell.leaf);
       const double unit = regions.entryBoundUnit(cell.depth) * kBoundShrink;
       const auto& corners = model.geometry.corners;
@@ -85,33 +85,35 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       // Prune against the promise as well as the best found; the promise is only a bound, never reported.
       const double entry_squared = best_squared;
       double prune_squared = std::min(best_squared, promise * promise);
-      for (const std::int32_t* it = begin; it != end; ++it, ++bounds) {
+      for (std::uint32_t n = 0; n < length; ++n, ++bounds) {
+        const std::int32_t t = regions.listTriangle(list, n);
         // Entries are sorted by bound: once one reaches the best distance, none after it can beat it.
         const double bound = double(*bounds) * unit;
         if (bound * bound >= prune_squared) break;
         // The triangle's bounding sphere: a lower bound for a few operations.
-        const Eigen::Vector4d& sphere = spheres[*it];
+        const Eigen::Vector4d& sphere = spheres[t];
         const double gap = (p_M - sphere.head<3>()).norm() - sphere[3];
         if (gap > 0 && gap * gap * kBoundShrink >= prune_squared) continue;
-        const auto& c = corners[*it];
+        const auto& c = corners[t];
         Eigen::Vector3d q;
         const double d = pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
         if (d < best_squared) {
           best_squared = d;
-          best_triangle = *it;
+          best_triangle = t;
           closest = q;
           prune_squared = std::min(prune_squared, d);
         }
       }
       if (best_triangle >= 0 || !(promise * promise < entry_squared)) return;
       // Unreachable unless a corner distance were wrong: a full scan without the promise stays exact.
-      for (const std::int32_t* it = regions.listBegin(cell.leaf); it != end; ++it) {
-        const auto& c = corners[*it];
+      for (std::uint32_t n = 0; n < length; ++n) {
+        const std::int32_t t = regions.listTriangle(list, n);
+        const auto& c = corners[t];
         Eigen::Vector3d q;
         const double d = pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
         if (d < best_squared) {
           best_squared = d;
-          best_triangle = *it;
+          best_triangle = t;
           closest = q;
         }
       }

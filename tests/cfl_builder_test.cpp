@@ -129,8 +129,8 @@ std::vector<Eigen::Vector3d> samplePoints(const TriangleMesh& mesh, const Region
 
 double listDistance(const CflModel& model, const TriangleMesh& mesh, std::uint32_t leaf, const Eigen::Vector3d& p) {
   double best = std::numeric_limits<double>::infinity();
-  for (const std::int32_t* t = model.regions.listBegin(leaf); t != model.regions.listEnd(leaf); ++t) {
-    const auto& tri = mesh.triangles[*t];
+  for (std::uint32_t n = 0; n < model.regions.leafListLength(leaf); ++n) {
+    const auto& tri = mesh.triangles[model.regions.leafListTriangle(leaf, n)];
     best = std::min(best, test::referencePointTriangleSquaredDistance(p, mesh.vertices[tri[0]], mesh.vertices[tri[1]],
                                                                        mesh.vertices[tri[2]]));
   }
@@ -184,19 +184,54 @@ int checkConservative(const CflModel& model, const TriangleMesh& mesh, int sampl
       // Every entry's bound is a lower bound on its triangle's distance from every point of the leaf: the
       // query stops scanning a list at the first bound that reaches its best distance.
       const std::uint8_t* bounds = tree.listBoundsBegin(v);
-      for (const std::int32_t* t = tree.listBegin(v); t != tree.listEnd(v); ++t, ++bounds) {
-        const auto& tri = mesh.triangles[*t];
+      for (std::uint32_t n = 0; n < tree.leafListLength(v); ++n, ++bounds) {
+        const std::int32_t t = tree.leafListTriangle(v, n);
+        const auto& tri = mesh.triangles[t];
         const double distance = std::sqrt(test::referencePointTriangleSquaredDistance(
             p, mesh.vertices[tri[0]], mesh.vertices[tri[1]], mesh.vertices[tri[2]]));
         const double bound = *bounds * tree.entryBoundUnit(leaf.depth);
         if (!(bound <= distance * (1 + 1e-12) + 1e-15 * diagonal) && ++failures <= 5) {
-          ADD_FAILURE() << label << ": leaf " << v << " entry bound " << bound << " of triangle " << *t
+          ADD_FAILURE() << label << ": leaf " << v << " entry bound " << bound << " of triangle " << t
                         << " exceeds its distance " << distance << " from (" << p.transpose() << ")";
         }
       }
     }
   }
   return failures;
+}
+
+// Lists whose ids span less than 65536 keep 16-bit ids from a base; wider ones keep the high bits apart.
+TEST(RegionTreeLists, NarrowAndWideListsDecodeToTheirIds) {
+  RegionTree tree;
+  const std::vector<std::int32_t> narrow = {70000, 70001, 135535, 100000};
+  const std::vector<std::int32_t> wide = {5, 70000, 1 << 20, 2147483647, 65535};
+  const std::vector<std::uint8_t> bounds = {0, 1, 2, 3, 4};
+  EXPECT_EQ(tree.appendList(narrow.data(), bounds.data(), std::uint32_t(narrow.size())), 0u);
+  EXPECT_EQ(tree.appendList(wide.data(), bounds.data(), std::uint32_t(wide.size())), 1u);
+  EXPECT_EQ(tree.appendList(narrow.data() + 1, bounds.data(), 1), 2u);
+  ASSERT_EQ(tree.listCount(), 3u);
+  EXPECT_EQ(tree.listBase(0), 70000);
+  EXPECT_LT(tree.listBase(1), 0);
+  EXPECT_EQ(tree.listBase(2), 70001);
+  EXPECT_EQ(tree.list_entry_ids.size(), 10u + 2 * 3);
+  EXPECT_EQ(tree.list_high_ids.size(), wide.size());
+  EXPECT_EQ(tree.list_offsets, (std::vector<std::uint32_t>{0, 4, 9, 10}));
+  for (std::uint32_t list = 0; list < 3; ++list) {
+    const std::int32_t* expected = list == 0 ? narrow.data() : list == 1 ? wide.data() : narrow.data() + 1;
+    ASSERT_EQ(tree.listLength(list), list == 0 ? 4u : list == 1 ? 5u : 1u);
+    for (std::uint32_t n = 0; n < tree.listLength(list); ++n) EXPECT_EQ(tree.listTriangle(list, n), expected[n]);
+    std::vector<std::int32_t> visited;
+    tree.forEachListTriangle(list, tree.listLength(list), [&](std::ptrdiff_t n, std::int32_t id) {
+      EXPECT_EQ(n, std::ptrdiff_t(visited.size()));
+      visited.push_back(id);
+    });
+    EXPECT_EQ(visited, std::vector<std::int32_t>(expected, expected + tree.listLength(list)));
+  }
+  std::vector<std::int32_t> all = narrow;
+  all.insert(all.end(), wide.begin(), wide.end());
+  all.push_back(narrow[1]);
+  EXPECT_EQ(tree.listTriangles(), all);
+  EXPECT_EQ(tree.list_entry_bounds.size(), 10u);
 }
 
 TEST(CflBuilder, ListsAreConservativeAtSeveralResolutions) {
@@ -305,13 +340,19 @@ TEST(CflBuilder, StorageIsWellFormedAndStatisticsMatchIt) {
       if (resolution > 0) EXPECT_EQ(tree.max_depth, 0) << "a uniform grid is never refined";
       ASSERT_FALSE(tree.list_offsets.empty());
       EXPECT_EQ(tree.list_offsets.front(), 0u);
-      EXPECT_EQ(tree.list_offsets.back(), tree.list_triangles.size());
+      EXPECT_EQ(tree.list_offsets.back(), tree.list_entry_bounds.size());
+      // Each list's base in two slots, then an id per entry.
+      EXPECT_EQ(tree.list_entry_ids.size(), tree.list_entry_bounds.size() + 2 * tree.listCount());
+      // Below 65536 triangles every list is narrow: 16-bit ids from a base.
+      if (triangles < 65536) {
+        EXPECT_TRUE(tree.list_high_ids.empty());
+        for (std::uint32_t list = 0; list < tree.listCount(); ++list) EXPECT_GE(tree.listBase(list), 0);
+      }
       EXPECT_TRUE(std::is_sorted(tree.list_offsets.begin(), tree.list_offsets.end()));
       // The model keeps the mesh it was given: triangle ids in the lists refer to the caller's triangles.
       EXPECT_EQ(model.geometry.mesh.triangles, named.mesh.triangles);
 
       std::int64_t total = 0, longest = 0;
-      ASSERT_EQ(tree.list_entry_bounds.size(), tree.list_triangles.size());
       std::set<std::pair<int, std::vector<std::pair<int, std::int32_t>>>> distinct;
       std::vector<std::int64_t> per_depth(tree.max_depth + 1, 0);
       std::int64_t without_list = 0;
@@ -326,7 +367,7 @@ TEST(CflBuilder, StorageIsWellFormedAndStatisticsMatchIt) {
         ASSERT_LT(tree.leaf_list[v] + 1, tree.list_offsets.size());
         std::vector<std::pair<int, std::int32_t>> list;  // (entry bound, triangle id)
         const std::uint8_t* bounds = tree.listBoundsBegin(v);
-        for (const std::int32_t* t = tree.listBegin(v); t != tree.listEnd(v); ++t) list.push_back({*bounds++, *t});
+        for (std::uint32_t n = 0; n < tree.leafListLength(v); ++n) list.push_back({*bounds++, tree.leafListTriangle(v, n)});
         EXPECT_FALSE(list.empty()) << "leaf " << v << " has an empty list";
         EXPECT_TRUE(std::adjacent_find(list.begin(), list.end(), [](auto a, auto b) { return a >= b; }) == list.end())
             << "leaf " << v << " list is not strictly increasing in (entry bound, id)";
@@ -357,7 +398,8 @@ TEST(CflBuilder, StorageIsWellFormedAndStatisticsMatchIt) {
       const MeshModel& geometry = model.geometry;
       const std::int64_t arrays =
           bytes(tree.nodes) + bytes(tree.leaf_list) + bytes(tree.leaf_lower_bound) + bytes(tree.leaf_corner_distance) +
-          bytes(tree.list_offsets) + bytes(tree.list_triangles) + bytes(tree.list_entry_bounds) +
+          bytes(tree.list_offsets) + bytes(tree.list_entry_ids) + bytes(tree.list_high_ids) +
+          bytes(tree.list_entry_bounds) +
           bytes(geometry.mesh.vertices) + bytes(geometry.mesh.triangles) + bytes(geometry.corners) +
           bytes(geometry.spheres) + bytes(geometry.planes) + bytes(geometry.leaf_corners) +
           bytes(geometry.leaf_spheres) + bytes(geometry.leaf_planes) + bytes(geometry.bvh.nodes) +
@@ -488,7 +530,8 @@ TEST(CflBuilder, ResultDoesNotDependOnThreadCount) {
       EXPECT_EQ(a.leaf_list, b.leaf_list) << named.name;
       EXPECT_EQ(a.leaf_lower_bound, b.leaf_lower_bound) << named.name;
       EXPECT_EQ(a.leaf_corner_distance, b.leaf_corner_distance) << named.name;
-      EXPECT_EQ(a.list_triangles, b.list_triangles) << named.name;
+      EXPECT_EQ(a.list_entry_ids, b.list_entry_ids) << named.name;
+      EXPECT_EQ(a.list_high_ids, b.list_high_ids) << named.name;
       EXPECT_EQ(a.list_entry_bounds, b.list_entry_bounds) << named.name;
       EXPECT_EQ(a.list_offsets, b.list_offsets) << named.name;
     }

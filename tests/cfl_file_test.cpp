@@ -74,7 +74,9 @@ void expectSameModel(const CflModel& a, const CflModel& b) {
   EXPECT_TRUE(sameBits(r.leaf_lower_bound, s.leaf_lower_bound));
   EXPECT_TRUE(sameBits(r.leaf_corner_distance, s.leaf_corner_distance));
   EXPECT_EQ(r.list_offsets, s.list_offsets);
-  EXPECT_EQ(r.list_triangles, s.list_triangles);
+  EXPECT_EQ(r.list_entry_ids, s.list_entry_ids);
+  EXPECT_EQ(r.list_high_ids, s.list_high_ids);
+  EXPECT_EQ(r.listTriangles(), s.listTriangles());
   EXPECT_EQ(r.list_entry_bounds, s.list_entry_bounds);
   EXPECT_EQ(a.statistics.resolution, b.statistics.resolution);
   EXPECT_EQ(a.statistics.voxel_count, b.statistics.voxel_count);
@@ -280,9 +282,10 @@ Bytes writeUnchecked(const CflModel& model) {
   });
   section("LIST", [&](ByteWriter& out) {
     out.u64(tree.list_offsets.size());
-    out.u64(tree.list_triangles.size());
+    const std::vector<std::int32_t> ids = tree.listTriangles();
+    out.u64(ids.size());
     for (std::uint32_t offset : tree.list_offsets) out.u32(offset);
-    for (std::int32_t id : tree.list_triangles) out.u32(static_cast<std::uint32_t>(id));
+    for (std::int32_t id : ids) out.u32(static_cast<std::uint32_t>(id));
   });
   section("LBND", [&](ByteWriter& out) {
     out.u64(tree.list_entry_bounds.size());
@@ -1042,7 +1045,8 @@ TEST(CflFile, LeavesWithoutAListRoundTripAndAreChecked) {
   // No lists at all.
   CflModel none = withoutLists(adaptiveModel(), 1);
   none.regions.list_offsets = {0};
-  none.regions.list_triangles.clear();
+  none.regions.list_entry_ids.clear();
+  none.regions.list_high_ids.clear();
   none.regions.list_entry_bounds.clear();
   none.statistics.distinct_lists = 0;
   const Bytes bytes = serializeCflModel(none);
@@ -1074,8 +1078,10 @@ TEST(CflFile, ExtremeButValidValuesLoadAndQueryWithoutCrashing) {
       }
       if (variant == 2) {  // every entry claims to be far: the lists then go in id order
         std::fill(tree.list_entry_bounds.begin(), tree.list_entry_bounds.end(), std::uint8_t(255));
-        for (std::size_t l = 0; l + 1 < tree.list_offsets.size(); ++l) {
-          std::sort(tree.list_triangles.begin() + tree.list_offsets[l], tree.list_triangles.begin() + tree.list_offsets[l + 1]);
+        ASSERT_TRUE(tree.list_high_ids.empty()) << "a small mesh's lists are narrow: base + 16-bit id";
+        for (std::uint32_t l = 0; l < tree.listCount(); ++l) {
+          const auto first = tree.list_entry_ids.begin() + std::ptrdiff_t(tree.listIdsBegin(l) + 2);
+          std::sort(first, first + tree.listLength(l));
         }
       }
       const Bytes bytes = serializeCflModel(model);
@@ -1139,7 +1145,10 @@ TEST_F(CflFileStructure, MissingDuplicateAndUnknownSectionsAreHandled) {
 
 TEST(CflFile, SavingAModelThatBreaksAnInvariantIsRefused) {
   CflModel model = smallModel();
-  model.regions.list_triangles[0] = 1 << 20;
+  // The first list's base, so that its first entry names triangle 1 << 20.
+  const std::uint32_t base = (1u << 20) - model.regions.list_entry_ids[2];
+  model.regions.list_entry_ids[0] = std::uint16_t(base & 0xffff);
+  model.regions.list_entry_ids[1] = std::uint16_t(base >> 16);
   expectModelRefused(model, "triangle id 1048576, out of range");
   model = smallModel();
   model.regions.leaf_corner_distance.pop_back();

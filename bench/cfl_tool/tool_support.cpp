@@ -136,6 +136,32 @@ void printStatistics(const CflModel& model, std::ostream& out) {
                 double(s.memory_bytes) / (1 << 20), double(s.memory_bytes) / double(triangles),
                 s.voxel_count > 0 ? double(s.memory_bytes) / double(s.voxel_count) : 0.0,
                 s.coarsened ? "; refinement stopped at the memory limit" : "");
+  // Where the bytes go: each array's capacity, per triangle.
+  const MeshModel& g = model.geometry;
+  auto perTriangle = [&](std::size_t bytes) { return double(bytes) / double(triangles); };
+  auto bytesOf = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  out << format("  mesh:              %.1f B/triangle (vertices %.1f, triangles %.1f)\n",
+                perTriangle(bytesOf(g.mesh.vertices) + bytesOf(g.mesh.triangles)), perTriangle(bytesOf(g.mesh.vertices)),
+                perTriangle(bytesOf(g.mesh.triangles)));
+  out << format("  triangle data:     %.1f B/triangle (corners %.1f, spheres %.1f, planes %.1f; in leaf order %.1f)\n",
+                perTriangle(bytesOf(g.corners) + bytesOf(g.spheres) + bytesOf(g.planes) + bytesOf(g.leaf_corners) +
+                            bytesOf(g.leaf_spheres) + bytesOf(g.leaf_planes)),
+                perTriangle(bytesOf(g.corners)), perTriangle(bytesOf(g.spheres)), perTriangle(bytesOf(g.planes)),
+                perTriangle(bytesOf(g.leaf_corners) + bytesOf(g.leaf_spheres) + bytesOf(g.leaf_planes)));
+  out << format("  Bvh:               %.1f B/triangle (%zu nodes of %zu B, triangle ids %.1f)\n",
+                perTriangle(bytesOf(g.bvh.nodes) + bytesOf(g.bvh.triangle_ids)), g.bvh.nodes.size(), sizeof(BvhNode),
+                perTriangle(bytesOf(g.bvh.triangle_ids)));
+  out << format("  region nodes:      %.1f B/triangle (%zu nodes)\n", perTriangle(bytesOf(r.nodes)), r.nodes.size());
+  out << format("  leaf arrays:       %.1f B/triangle (list ids %.1f, lower bounds %.1f, corner distances %.1f)\n",
+                perTriangle(bytesOf(r.leaf_list) + bytesOf(r.leaf_lower_bound) + bytesOf(r.leaf_corner_distance)),
+                perTriangle(bytesOf(r.leaf_list)), perTriangle(bytesOf(r.leaf_lower_bound)),
+                perTriangle(bytesOf(r.leaf_corner_distance)));
+  out << format("  lists:             %.1f B/triangle (%zu entries: ids and bases %.1f, wide ids' high bits %.1f, bounds %.1f; "
+                "offsets %.1f)\n",
+                perTriangle(bytesOf(r.list_entry_ids) + bytesOf(r.list_high_ids) + bytesOf(r.list_entry_bounds) +
+                            bytesOf(r.list_offsets)),
+                r.list_entry_bounds.size(), perTriangle(bytesOf(r.list_entry_ids)), perTriangle(bytesOf(r.list_high_ids)),
+                perTriangle(bytesOf(r.list_entry_bounds)), perTriangle(bytesOf(r.list_offsets)));
   out << format("build time:          %.3f s\n", s.build_seconds);
   out << format("topology culling:    %s\n", model.topology_culling ? "on" : "off");
   out << format("closed:              %s\n", model.sign.closure.closed ? "yes" : ("no (" + model.sign.closure.reason + ")").c_str());

@@ -11,10 +11,14 @@
 /// A uniform grid is the special case max_depth == 0 (every root cell a leaf), which BuildOptions::resolution
 /// asks for.
 
+#include "cfl/error.h"
 #include "cfl/mesh.h"
 
+#include <algorithm>
 #include <array>
+#include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace cfl {
@@ -59,12 +63,22 @@ struct RegionTree {
   std::vector<float> leaf_lower_bound;
   std::vector<std::array<float, 8>> leaf_corner_distance;
 
-  /// CSR storage of the lists: list l is list_triangles[list_offsets[l], list_offsets[l + 1]), triangle ids
-  /// into the mesh. Within a list, entries are sorted by (list_entry_bounds, id), both increasing, so a query
-  /// scans the nearest triangles first and stops at the first entry whose bound reaches its best distance.
+  /// CSR storage of the lists: list l is entries [list_offsets[l], list_offsets[l + 1]), bounds in
+  /// list_entry_bounds at those indices. Within a list, entries are sorted by (list_entry_bounds, triangle
+  /// id), both increasing, so a query scans the nearest triangles first and stops at the first entry whose
+  /// bound reaches its best distance. Read the ids with listTriangle / forEachListTriangle; add lists with
+  /// appendList.
   std::vector<std::uint32_t> list_offsets;
-  std::vector<std::int32_t> list_triangles;
-  /// Parallel to list_triangles: a lower bound on the distance between the entry's triangle and the leaves
+  /// The ids, 16 bits each: list l starts at listIdsBegin(l) = list_offsets[l] + 2 l with two slots holding
+  /// its base (a 32-bit signed integer, low half first), then one slot per entry. With base >= 0, entry n
+  /// is triangle base + slot (the list's ids span less than 65536: every list of a mesh below 65536
+  /// triangles, nearly every one of a larger mesh's, whose lists hold the triangles near one cell). With
+  /// base < 0 the list is "wide": the slot holds the id's low 16 bits and list_high_ids[~base + n] its high
+  /// bits. The base sits next to the ids, on their cache line. Two bytes per entry instead of four: the
+  /// lists are most of a model.
+  std::vector<std::uint16_t> list_entry_ids;
+  std::vector<std::uint16_t> list_high_ids;
+  /// Parallel to the entries: a lower bound on the distance between the entry's triangle and the leaves
   /// that use the list, in units of entryBoundUnit(depth) of those leaves, rounded down, saturated at 255.
   std::vector<std::uint8_t> list_entry_bounds;
 
@@ -81,9 +95,68 @@ struct RegionTree {
     return box;
   }
   bool hasList(std::uint32_t leaf) const { return leaf_list[leaf] != kNoList; }
-  /// The CFL of a leaf that has one (hasList) as a [begin, end) range of triangle ids.
-  const std::int32_t* listBegin(std::uint32_t leaf) const { return list_triangles.data() + list_offsets[leaf_list[leaf]]; }
-  const std::int32_t* listEnd(std::uint32_t leaf) const { return list_triangles.data() + list_offsets[leaf_list[leaf] + 1]; }
+  std::size_t listCount() const { return list_offsets.empty() ? 0 : list_offsets.size() - 1; }
+  std::uint32_t listLength(std::uint32_t list) const { return list_offsets[list + 1] - list_offsets[list]; }
+  /// Index in list_entry_ids of the list's base (its entries follow it).
+  std::size_t listIdsBegin(std::uint32_t list) const { return std::size_t(list_offsets[list]) + 2 * std::size_t(list); }
+  std::int32_t listBase(std::uint32_t list) const {
+    const std::uint16_t* slots = list_entry_ids.data() + listIdsBegin(list);
+    return std::int32_t(std::uint32_t(slots[0]) | std::uint32_t(slots[1]) << 16);
+  }
+  /// Entry n of list `list`: a triangle id.
+  std::int32_t listTriangle(std::uint32_t list, std::uint32_t n) const {
+    const std::int32_t base = listBase(list);
+    const std::uint16_t low = list_entry_ids[listIdsBegin(list) + 2 + n];
+    if (base >= 0) return base + std::int32_t(low);
+    return std::int32_t(std::uint32_t(low) | std::uint32_t(list_high_ids[std::uint32_t(~base) + n]) << 16);
+  }
+  /// Calls visit(n, id) for the first `count` entries of list `list` (count <= listLength(list)), in order.
+  template <class Visit>
+  void forEachListTriangle(std::uint32_t list, std::ptrdiff_t count, Visit&& visit) const {
+    const std::uint16_t* slots = list_entry_ids.data() + listIdsBegin(list);
+    const std::int32_t base = std::int32_t(std::uint32_t(slots[0]) | std::uint32_t(slots[1]) << 16);
+    const std::uint16_t* low = slots + 2;
+    if (base >= 0) {
+      for (std::ptrdiff_t n = 0; n < count; ++n) visit(n, base + std::int32_t(low[n]));
+    } else {
+      const std::uint16_t* high = list_high_ids.data() + std::uint32_t(~base);
+      for (std::ptrdiff_t n = 0; n < count; ++n) visit(n, std::int32_t(std::uint32_t(low[n]) | std::uint32_t(high[n]) << 16));
+    }
+  }
+  /// Appends a list of `length` triangle ids (>= 0) with their entry bounds, already sorted by (bound, id);
+  /// returns its index. Throws cfl::Error past 2^31 wide entries (tens of gigabytes of lists).
+  std::uint32_t appendList(const std::int32_t* ids, const std::uint8_t* bounds, std::uint32_t length) {
+    if (list_offsets.empty()) list_offsets.push_back(0);
+    std::int32_t lowest = length > 0 ? ids[0] : 0, highest = lowest;
+    for (std::uint32_t n = 1; n < length; ++n) lowest = std::min(lowest, ids[n]), highest = std::max(highest, ids[n]);
+    const bool narrow = std::int64_t(highest) - lowest < 65536;
+    if (!narrow && list_high_ids.size() + length > std::size_t(std::numeric_limits<std::int32_t>::max())) {
+      throw Error("the regions' lists hold more wide entries than a RegionTree indexes");
+    }
+    const std::uint32_t base = narrow ? std::uint32_t(lowest) : ~std::uint32_t(list_high_ids.size());
+    list_entry_ids.push_back(std::uint16_t(base & 0xffffu));
+    list_entry_ids.push_back(std::uint16_t(base >> 16));
+    for (std::uint32_t n = 0; n < length; ++n) {
+      const std::uint32_t id = std::uint32_t(ids[n]);
+      list_entry_ids.push_back(std::uint16_t(narrow ? id - base : id & 0xffffu));
+      if (!narrow) list_high_ids.push_back(std::uint16_t(id >> 16));
+    }
+    list_entry_bounds.insert(list_entry_bounds.end(), bounds, bounds + length);
+    list_offsets.push_back(std::uint32_t(list_entry_bounds.size()));
+    return std::uint32_t(list_offsets.size() - 2);
+  }
+  /// Every list's triangle ids, list after list, indexed as list_entry_bounds.
+  std::vector<std::int32_t> listTriangles() const {
+    std::vector<std::int32_t> ids;
+    ids.reserve(list_entry_bounds.size());
+    for (std::uint32_t list = 0; list < listCount(); ++list) {
+      forEachListTriangle(list, listLength(list), [&](std::ptrdiff_t, std::int32_t id) { ids.push_back(id); });
+    }
+    return ids;
+  }
+  /// The CFL of a leaf that has one (hasList): its length, its ids and its entry bounds.
+  std::uint32_t leafListLength(std::uint32_t leaf) const { return listLength(leaf_list[leaf]); }
+  std::int32_t leafListTriangle(std::uint32_t leaf, std::uint32_t n) const { return listTriangle(leaf_list[leaf], n); }
   const std::uint8_t* listBoundsBegin(std::uint32_t leaf) const {
     return list_entry_bounds.data() + list_offsets[leaf_list[leaf]];
   }

@@ -61,17 +61,6 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
                       (p_M.array() <= box.max.array()).all();
   if (inside) {
     const RegionCell cell = regions.locate(p_M);
-    // The leaf's corner distances promise a triangle within (corner distance + |p - corner|) of p, distance
-    // being 1-Lipschitz. Corner distances are rounded down to float: inflated by far more than a float's
-    // rounding, the promise holds. It prunes from the first test on, in the list and in the Bvh alike.
-    const std::array<float, 8>& corner_distance = regions.leaf_corner_distance[cell.leaf];
-    double promise = std::numeric_limits<double>::infinity();
-    for (int c = 0; c < 8; ++c) {
-      const Eigen::Vector3d corner =
-          cell.min_corner + cell.size * Eigen::Vector3d(double(c & 1), double((c >> 1) & 1), double(c >> 2));
-      promise = std::min(promise, double(corner_distance[c]) * (1 + 1e-6) + (p_M - corner).norm());
-    }
-    promise *= 1 + 1e-9;
     if (regions.hasList(cell.leaf)) {
       // No point of the leaf is closer to the mesh than its lower bound.
       const double leaf_bound = double(regions.leaf_lower_bound[cell.leaf]) * kBoundShrink;
@@ -82,17 +71,28 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       const double unit = regions.entryBoundUnit(cell.depth) * kBoundShrink;
       const auto& corners = model.geometry.corners;
       const auto& spheres = model.geometry.spheres;
-      // Prune against the promise as well as the best found; the promise is only a bound, never reported.
-      const double entry_squared = best_squared;
-      double prune_squared = std::min(best_squared, promise * promise);
+      const auto& planes = model.geometry.planes;
+      // The best distance so far, also unsquared for the per-triangle bounds below (square roots only when
+      // it improves, a few times per point).
+      double best = std::sqrt(best_squared);
+      // The plane bound's rounding: the products n . p and the offset round at the scale of the
+      // coordinates, and the corners sit off the plane by a few ulps of the triangle's size.
+      const double scale = p_M.cwiseAbs().sum();
       for (const std::int32_t* it = begin; it != end; ++it, ++bounds) {
         // Entries are sorted by bound: once one reaches the best distance, none after it can beat it.
         const double bound = double(*bounds) * unit;
-        if (bound * bound >= prune_squared) break;
-        // The triangle's bounding sphere: a lower bound for a few operations.
+        if (bound * bound >= best_squared) break;
+        // The triangle's bounding sphere, squared: |p - center| >= radius + best puts it beyond the best.
         const Eigen::Vector4d& sphere = spheres[*it];
-        const double gap = (p_M - sphere.head<3>()).norm() - sphere[3];
-        if (gap > 0 && gap * gap * kBoundShrink >= prune_squared) continue;
+        const double reach_squared = (p_M - sphere.head<3>()).squaredNorm();
+        const double rim = sphere[3] + best;
+        if (reach_squared * kBoundShrink >= rim * rim) continue;
+        // Its plane (zero for a sliver, which then passes): the distance to the plane bounds the distance
+        // to the triangle from below.
+        const Eigen::Vector4d& plane = planes[*it];
+        const double height = std::abs(plane.head<3>().dot(p_M) - plane[3]) -
+                              1e-13 * (scale + std::abs(plane[3]) + sphere[3]);
+        if (height * kBoundShrink >= best) continue;
         const auto& c = corners[*it];
         Eigen::Vector3d q;
         const double d = pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
@@ -100,23 +100,23 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
           best_squared = d;
           best_triangle = *it;
           closest = q;
-          prune_squared = std::min(prune_squared, d);
-        }
-      }
-      if (best_triangle >= 0 || !(promise * promise < entry_squared)) return;
-      // Unreachable unless a corner distance were wrong: a full scan without the promise stays exact.
-      for (const std::int32_t* it = regions.listBegin(cell.leaf); it != end; ++it) {
-        const auto& c = corners[*it];
-        Eigen::Vector3d q;
-        const double d = pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
-        if (d < best_squared) {
-          best_squared = d;
-          best_triangle = *it;
-          closest = q;
+          best = std::sqrt(d);
         }
       }
       return;
     }
+    // The leaf's corner distances promise a triangle within (corner distance + |p - corner|) of p, distance
+    // being 1-Lipschitz. Corner distances are rounded down to float: inflated by far more than a float's
+    // rounding, the promise holds. (Near the surface, where leaves have lists, the first entries' exact
+    // tests beat it: the scan above does without.)
+    const std::array<float, 8>& corner_distance = regions.leaf_corner_distance[cell.leaf];
+    double promise = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d corner =
+          cell.min_corner + cell.size * Eigen::Vector3d(double(c & 1), double((c >> 1) & 1), double(c >> 2));
+      promise = std::min(promise, double(corner_distance[c]) * (1 + 1e-6) + (p_M - corner).norm());
+    }
+    promise *= 1 + 1e-9;
     // No list: the Bvh answers, seeded with the promise, so that the walk skips every node farther (for a
     // point deep inside a solid or far above a flat part, most of the tree).
     if (promise * promise < best_squared) {

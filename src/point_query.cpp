@@ -51,6 +51,81 @@ inline void tsanAcquire([[maybe_unused]] void* token) {
 // a bound is shrunk by far more than their error before it may end the scan.
 constexpr double kBoundShrink = 1 - 1e-12;
 
+inline void prefetch([[maybe_unused]] const void* address) {
+#if defined(__GNUC__)
+  __builtin_prefetch(address);
+#endif
+}
+
+// A batch queries points whose leaves are scattered over arrays of many megabytes (the rock's lists: 18 MB),
+// and each query's first reads form a chain of cache misses: leaf -> list index -> list offset -> the list's
+// ids and entry bounds. The batch walks that chain for the points a few places ahead, one link per stage,
+// with prefetches, so that a query finds them cached. It only reads the model: results do not change.
+class LeafPrefetcher {
+ public:
+  static constexpr std::ptrdiff_t kStep = 4;  // points between two stages of one point
+  static constexpr std::ptrdiff_t kAhead = 3 * kStep;
+
+  LeafPrefetcher(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d* points_W)
+      : regions_(model.regions), X_MW_(X_WM.inverse(Eigen::Isometry)), points_W_(points_W) {
+    const Aabb box = regions_.bounds();
+    min_ = box.min;
+    max_ = box.max;
+    usable_ = !regions_.nodes.empty();
+  }
+
+  // Before querying point i of [begin, end): stage 1 for i + 3 kStep, 2 for i + 2 kStep, 3 for i + kStep.
+  void advance(std::ptrdiff_t i, std::ptrdiff_t end) {
+    if (!usable_) return;
+    if (i + kAhead < end) locateAhead(i + kAhead);
+    if (i + 2 * kStep < end && i + 2 * kStep >= begin_) {
+      const std::uint32_t leaf = slot(i + 2 * kStep);
+      if (leaf != kNone) {
+        const std::uint32_t list = regions_.leaf_list[leaf];
+        if (list != RegionTree::kNoList) prefetch(&regions_.list_offsets[list]);
+        else prefetch(&regions_.leaf_corner_distance[leaf]);
+      }
+    }
+    if (i + kStep < end && i + kStep >= begin_) {
+      const std::uint32_t leaf = slot(i + kStep);
+      if (leaf != kNone && regions_.leaf_list[leaf] != RegionTree::kNoList) {
+        const std::uint32_t offset = regions_.list_offsets[regions_.leaf_list[leaf]];
+        prefetch(regions_.list_triangles.data() + offset);
+        prefetch(regions_.list_entry_bounds.data() + offset);
+      }
+    }
+  }
+
+  // Fills the pipeline for a range starting at begin.
+  void start(std::ptrdiff_t begin, std::ptrdiff_t end) {
+    begin_ = begin;
+    for (std::ptrdiff_t i = begin - kAhead; i < begin; ++i) advance(i, end);
+  }
+
+ private:
+  static constexpr std::uint32_t kNone = 0xffffffffu;
+  std::uint32_t& slot(std::ptrdiff_t j) { return ring_[std::size_t(j) % kRing]; }
+  void locateAhead(std::ptrdiff_t j) {
+    std::uint32_t& leaf = slot(j);
+    leaf = kNone;
+    if (j < begin_) return;
+    const Eigen::Vector3d p_M = X_MW_ * points_W_[j];
+    if (!((p_M.array() >= min_.array()).all() && (p_M.array() <= max_.array()).all())) return;
+    leaf = regions_.locate(p_M).leaf;
+    prefetch(&regions_.leaf_list[leaf]);
+    prefetch(&regions_.leaf_lower_bound[leaf]);
+  }
+
+  static constexpr std::size_t kRing = 16;  // > kAhead, a power of two
+  const RegionTree& regions_;
+  Eigen::Isometry3d X_MW_;
+  const Eigen::Vector3d* points_W_;
+  Eigen::Vector3d min_, max_;
+  bool usable_ = false;
+  std::ptrdiff_t begin_ = 0;
+  std::uint32_t ring_[kRing];
+};
+
 // The closest triangle to p_M strictly within sqrt(best_squared) (the entry value), through the point's leaf
 // when it lies in the regions and has a list, else through the Bvh. best_triangle stays -1 when there is none.
 void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& best_squared, int& best_triangle,
@@ -305,8 +380,17 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   validateOptions(model, options);
   const int threads = batchThreadCount(options.threads, count);
   auto query = [&](std::size_t i) { results[i] = pointDistance(model, X_WM, points_W[i], options); };
+  // Queries [begin, end) in order, with the leaf data of the points ahead prefetched.
+  auto queryRange = [&](std::size_t begin, std::size_t end) {
+    LeafPrefetcher prefetcher(model, X_WM, points_W);
+    prefetcher.start(std::ptrdiff_t(begin), std::ptrdiff_t(end));
+    for (std::size_t i = begin; i != end; ++i) {
+      prefetcher.advance(std::ptrdiff_t(i), std::ptrdiff_t(end));
+      query(i);
+    }
+  };
   if (threads <= 1) {
-    for (std::size_t i = 0; i < count; ++i) query(i);
+    queryRange(0, count);
     return;
   }
   // As computeDistances (batch_query.cpp): an arena capped at `threads` slots, chunks stolen by idle threads;
@@ -320,7 +404,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
         tbb::blocked_range<std::size_t>(0, count, chunk),
         [&](const tbb::blocked_range<std::size_t>& range) {
           tsanAcquire(&before);
-          for (std::size_t i = range.begin(); i != range.end(); ++i) query(i);
+          queryRange(range.begin(), range.end());
           tsanRelease(&after);
         },
         tbb::simple_partitioner());

@@ -126,6 +126,18 @@ class LeafPrefetcher {
   std::uint32_t ring_[kRing];
 };
 
+// The Bvh walk: on the compact nodes when the model has them (makeMeshModel builds them; a MeshModel put
+// together by hand may not).
+void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, double& best_squared, int& best_triangle,
+                         Eigen::Vector3d* closest) {
+  if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() &&
+      geometry.leaf_corners.size() == geometry.bvh.triangle_ids.size()) {
+    detail::nearestTriangleCompact(geometry, p, best_squared, best_triangle, closest);
+  } else {
+    detail::nearestTriangle(geometry, p, best_squared, best_triangle, closest);
+  }
+}
+
 // The closest triangle to p_M strictly within sqrt(best_squared) (the entry value), through the point's leaf
 // when it lies in the regions and has a list, else through the Bvh. best_triangle stays -1 when there is none.
 void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& best_squared, int& best_triangle,
@@ -198,7 +210,7 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       double found_squared = promise * promise;
       int found = -1;
       Eigen::Vector3d q;
-      detail::nearestTriangle(model.geometry, p_M, found_squared, found, &q);
+      nearestTriangleFast(model.geometry, p_M, found_squared, found, &q);
       if (found >= 0) {
         best_squared = found_squared;
         best_triangle = found;
@@ -208,7 +220,7 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       // Unreachable unless a corner distance were wrong: the unseeded walk below stays exact regardless.
     }
   }
-  detail::nearestTriangle(model.geometry, p_M, best_squared, best_triangle, &closest);
+  nearestTriangleFast(model.geometry, p_M, best_squared, best_triangle, &closest);
 }
 
 // Which feature of triangle (a, b, c) holds the point closest to p: 0 the face, 1 + e edge e (corners e and

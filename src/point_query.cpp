@@ -250,6 +250,12 @@ int closestFeature(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eig
 }
 
 Eigen::Vector3d unitNormal(const MeshModel& geometry, int t) {
+  // MeshModel::planes holds this very unit normal (the same accurate normal over its length) except for
+  // slivers, whose plane is zero.
+  if (std::size_t(t) < geometry.planes.size()) {
+    const Eigen::Vector4d& plane = geometry.planes[t];
+    if (plane[0] != 0 || plane[1] != 0 || plane[2] != 0) return plane.head<3>();
+  }
   const Eigen::Vector3d n = detail::accurateNormal(geometry.corners[t].data());
   const double length = n.norm();
   return length > 0 ? Eigen::Vector3d(n / length) : Eigen::Vector3d::Zero();

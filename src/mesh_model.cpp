@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Geometry>
 
@@ -91,6 +92,21 @@ MeshModel makeMeshModel(TriangleMesh mesh) {
     model.leaf_corners[n] = model.corners[t];
     model.leaf_spheres[n] = model.spheres[t];
     model.leaf_planes[n] = model.planes[t];
+  }
+  model.compact_nodes.resize(model.bvh.nodes.size());
+  for (std::size_t n = 0; n < model.bvh.nodes.size(); ++n) {
+    const BvhNode& node = model.bvh.nodes[n];
+    CompactBvhNode& compact = model.compact_nodes[n];
+    for (int axis = 0; axis < 3; ++axis) {
+      // Rounded outward, so that the float box holds the double one.
+      float low = float(node.box.min[axis]), high = float(node.box.max[axis]);
+      if (double(low) > node.box.min[axis]) low = std::nextafter(low, -std::numeric_limits<float>::infinity());
+      if (double(high) < node.box.max[axis]) high = std::nextafter(high, std::numeric_limits<float>::infinity());
+      compact.min[axis] = low;
+      compact.max[axis] = high;
+    }
+    compact.first = node.first;
+    compact.count = node.count;
   }
   model.bounds = boundingBox(model.mesh);
   return model;

@@ -51,6 +51,93 @@ inline void tsanAcquire([[maybe_unused]] void* token) {
 // a bound is shrunk by far more than their error before it may end the scan.
 constexpr double kBoundShrink = 1 - 1e-12;
 
+inline void prefetch([[maybe_unused]] const void* address) {
+#if defined(__GNUC__)
+  __builtin_prefetch(address);
+#endif
+}
+
+// A batch queries points whose leaves are scattered over arrays of many megabytes (the rock's lists: 18 MB),
+// and each query's first reads form a chain of cache misses: leaf -> list index -> list offset -> the list's
+// ids and entry bounds. The batch walks that chain for the points a few places ahead, one link per stage,
+// with prefetches, so that a query finds them cached. It only reads the model: results do not change.
+class LeafPrefetcher {
+ public:
+  static constexpr std::ptrdiff_t kStep = 4;  // points between two stages of one point
+  static constexpr std::ptrdiff_t kAhead = 3 * kStep;
+
+  LeafPrefetcher(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d* points_W)
+      : regions_(model.regions), X_MW_(X_WM.inverse(Eigen::Isometry)), points_W_(points_W) {
+    const Aabb box = regions_.bounds();
+    min_ = box.min;
+    max_ = box.max;
+    usable_ = !regions_.nodes.empty();
+  }
+
+  // Before querying point i of [begin, end): stage 1 for i + 3 kStep, 2 for i + 2 kStep, 3 for i + kStep.
+  void advance(std::ptrdiff_t i, std::ptrdiff_t end) {
+    if (!usable_) return;
+    if (i + kAhead < end) locateAhead(i + kAhead);
+    if (i + 2 * kStep < end && i + 2 * kStep >= begin_) {
+      const std::uint32_t leaf = slot(i + 2 * kStep);
+      if (leaf != kNone) {
+        const std::uint32_t list = regions_.leaf_list[leaf];
+        if (list != RegionTree::kNoList) prefetch(&regions_.list_offsets[list]);
+        else prefetch(&regions_.leaf_corner_distance[leaf]);
+      }
+    }
+    if (i + kStep < end && i + kStep >= begin_) {
+      const std::uint32_t leaf = slot(i + kStep);
+      if (leaf != kNone && regions_.leaf_list[leaf] != RegionTree::kNoList) {
+        const std::uint32_t list = regions_.leaf_list[leaf];
+        prefetch(regions_.list_entry_ids.data() + regions_.listIdsBegin(list));
+        prefetch(regions_.list_entry_bounds.data() + regions_.list_offsets[list]);
+      }
+    }
+  }
+
+  // Fills the pipeline for a range starting at begin.
+  void start(std::ptrdiff_t begin, std::ptrdiff_t end) {
+    begin_ = begin;
+    for (std::ptrdiff_t i = begin - kAhead; i < begin; ++i) advance(i, end);
+  }
+
+ private:
+  static constexpr std::uint32_t kNone = 0xffffffffu;
+  std::uint32_t& slot(std::ptrdiff_t j) { return ring_[std::size_t(j) % kRing]; }
+  void locateAhead(std::ptrdiff_t j) {
+    std::uint32_t& leaf = slot(j);
+    leaf = kNone;
+    if (j < begin_) return;
+    const Eigen::Vector3d p_M = X_MW_ * points_W_[j];
+    if (!((p_M.array() >= min_.array()).all() && (p_M.array() <= max_.array()).all())) return;
+    leaf = regions_.locate(p_M).leaf;
+    prefetch(&regions_.leaf_list[leaf]);
+    prefetch(&regions_.leaf_lower_bound[leaf]);
+  }
+
+  static constexpr std::size_t kRing = 16;  // > kAhead, a power of two
+  const RegionTree& regions_;
+  Eigen::Isometry3d X_MW_;
+  const Eigen::Vector3d* points_W_;
+  Eigen::Vector3d min_, max_;
+  bool usable_ = false;
+  std::ptrdiff_t begin_ = 0;
+  std::uint32_t ring_[kRing];
+};
+
+// The Bvh walk: on the compact nodes when the model has them (makeMeshModel builds them; a MeshModel put
+// together by hand may not).
+void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, double& best_squared, int& best_triangle,
+                         Eigen::Vector3d* closest) {
+  if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() &&
+      geometry.leaf_corners.size() == geometry.bvh.triangle_ids.size()) {
+    detail::nearestTriangleCompact(geometry, p, best_squared, best_triangle, closest);
+  } else {
+    detail::nearestTriangle(geometry, p, best_squared, best_triangle, closest);
+  }
+}
+
 // The closest triangle to p_M strictly within sqrt(best_squared) (the entry value), through the point's leaf
 // when it lies in the regions and has a list, else through the Bvh. best_triangle stays -1 when there is none.
 void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& best_squared, int& best_triangle,
@@ -61,17 +148,6 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
                       (p_M.array() <= box.max.array()).all();
   if (inside) {
     const RegionCell cell = regions.locate(p_M);
-    // The leaf's corner distances promise a triangle within (corner distance + |p - corner|) of p, distance
-    // being 1-Lipschitz. Corner distances are rounded down to float: inflated by far more than a float's
-    // rounding, the promise holds. It prunes from the first test on, in the list and in the Bvh alike.
-    const std::array<float, 8>& corner_distance = regions.leaf_corner_distance[cell.leaf];
-    double promise = std::numeric_limits<double>::infinity();
-    for (int c = 0; c < 8; ++c) {
-      const Eigen::Vector3d corner =
-          cell.min_corner + cell.size * Eigen::Vector3d(double(c & 1), double((c >> 1) & 1), double(c >> 2));
-      promise = std::min(promise, double(corner_distance[c]) * (1 + 1e-6) + (p_M - corner).norm());
-    }
-    promise *= 1 + 1e-9;
     if (regions.hasList(cell.leaf)) {
       // No point of the leaf is closer to the mesh than its lower bound.
       const double leaf_bound = double(regions.leaf_lower_bound[cell.leaf]) * kBoundShrink;
@@ -82,32 +158,29 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       const double unit = regions.entryBoundUnit(cell.depth) * kBoundShrink;
       const auto& corners = model.geometry.corners;
       const auto& spheres = model.geometry.spheres;
-      // Prune against the promise as well as the best found; the promise is only a bound, never reported.
-      const double entry_squared = best_squared;
-      double prune_squared = std::min(best_squared, promise * promise);
+      const auto& planes = model.geometry.planes;
+      // The best distance so far, also unsquared for the per-triangle bounds below (square roots only when
+      // it improves, a few times per point).
+      double best = std::sqrt(best_squared);
+      // The plane bound's rounding: the products n . p and the offset round at the scale of the
+      // coordinates, and the corners sit off the plane by a few ulps of the triangle's size.
+      const double scale = p_M.cwiseAbs().sum();
       for (std::uint32_t n = 0; n < length; ++n, ++bounds) {
-        const std::int32_t t = regions.listTriangle(list, n);
         // Entries are sorted by bound: once one reaches the best distance, none after it can beat it.
         const double bound = double(*bounds) * unit;
-        if (bound * bound >= prune_squared) break;
-        // The triangle's bounding sphere: a lower bound for a few operations.
-        const Eigen::Vector4d& sphere = spheres[t];
-        const double gap = (p_M - sphere.head<3>()).norm() - sphere[3];
-        if (gap > 0 && gap * gap * kBoundShrink >= prune_squared) continue;
-        const auto& c = corners[t];
-        Eigen::Vector3d q;
-        const double d = pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
-        if (d < best_squared) {
-          best_squared = d;
-          best_triangle = t;
-          closest = q;
-          prune_squared = std::min(prune_squared, d);
-        }
-      }
-      if (best_triangle >= 0 || !(promise * promise < entry_squared)) return;
-      // Unreachable unless a corner distance were wrong: a full scan without the promise stays exact.
-      for (std::uint32_t n = 0; n < length; ++n) {
+        if (bound * bound >= best_squared) break;
         const std::int32_t t = regions.listTriangle(list, n);
+        // The triangle's bounding sphere, squared: |p - center| >= radius + best puts it beyond the best.
+        const Eigen::Vector4d& sphere = spheres[t];
+        const double reach_squared = (p_M - sphere.head<3>()).squaredNorm();
+        const double rim = sphere[3] + best;
+        if (reach_squared * kBoundShrink >= rim * rim) continue;
+        // Its plane (zero for a sliver, which then passes): the distance to the plane bounds the distance
+        // to the triangle from below.
+        const Eigen::Vector4d& plane = planes[t];
+        const double height = std::abs(plane.head<3>().dot(p_M) - plane[3]) -
+                              1e-13 * (scale + std::abs(plane[3]) + sphere[3]);
+        if (height * kBoundShrink >= best) continue;
         const auto& c = corners[t];
         Eigen::Vector3d q;
         const double d = pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
@@ -115,17 +188,30 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
           best_squared = d;
           best_triangle = t;
           closest = q;
+          best = std::sqrt(d);
         }
       }
       return;
     }
+    // The leaf's corner distances promise a triangle within (corner distance + |p - corner|) of p, distance
+    // being 1-Lipschitz. Corner distances are rounded down to float: inflated by far more than a float's
+    // rounding, the promise holds. (Near the surface, where leaves have lists, the first entries' exact
+    // tests beat it: the scan above does without.)
+    const std::array<float, 8>& corner_distance = regions.leaf_corner_distance[cell.leaf];
+    double promise = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d corner =
+          cell.min_corner + cell.size * Eigen::Vector3d(double(c & 1), double((c >> 1) & 1), double(c >> 2));
+      promise = std::min(promise, double(corner_distance[c]) * (1 + 1e-6) + (p_M - corner).norm());
+    }
+    promise *= 1 + 1e-9;
     // No list: the Bvh answers, seeded with the promise, so that the walk skips every node farther (for a
     // point deep inside a solid or far above a flat part, most of the tree).
     if (promise * promise < best_squared) {
       double found_squared = promise * promise;
       int found = -1;
       Eigen::Vector3d q;
-      detail::nearestTriangle(model.geometry, p_M, found_squared, found, &q);
+      nearestTriangleFast(model.geometry, p_M, found_squared, found, &q);
       if (found >= 0) {
         best_squared = found_squared;
         best_triangle = found;
@@ -135,7 +221,7 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       // Unreachable unless a corner distance were wrong: the unseeded walk below stays exact regardless.
     }
   }
-  detail::nearestTriangle(model.geometry, p_M, best_squared, best_triangle, &closest);
+  nearestTriangleFast(model.geometry, p_M, best_squared, best_triangle, &closest);
 }
 
 // Which feature of triangle (a, b, c) holds the point closest to p: 0 the face, 1 + e edge e (corners e and
@@ -165,6 +251,12 @@ int closestFeature(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eig
 }
 
 Eigen::Vector3d unitNormal(const MeshModel& geometry, int t) {
+  // MeshModel::planes holds this very unit normal (the same accurate normal over its length) except for
+  // slivers, whose plane is zero.
+  if (std::size_t(t) < geometry.planes.size()) {
+    const Eigen::Vector4d& plane = geometry.planes[t];
+    if (plane[0] != 0 || plane[1] != 0 || plane[2] != 0) return plane.head<3>();
+  }
   const Eigen::Vector3d n = detail::accurateNormal(geometry.corners[t].data());
   const double length = n.norm();
   return length > 0 ? Eigen::Vector3d(n / length) : Eigen::Vector3d::Zero();
@@ -307,8 +399,17 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   validateOptions(model, options);
   const int threads = batchThreadCount(options.threads, count);
   auto query = [&](std::size_t i) { results[i] = pointDistance(model, X_WM, points_W[i], options); };
+  // Queries [begin, end) in order, with the leaf data of the points ahead prefetched.
+  auto queryRange = [&](std::size_t begin, std::size_t end) {
+    LeafPrefetcher prefetcher(model, X_WM, points_W);
+    prefetcher.start(std::ptrdiff_t(begin), std::ptrdiff_t(end));
+    for (std::size_t i = begin; i != end; ++i) {
+      prefetcher.advance(std::ptrdiff_t(i), std::ptrdiff_t(end));
+      query(i);
+    }
+  };
   if (threads <= 1) {
-    for (std::size_t i = 0; i < count; ++i) query(i);
+    queryRange(0, count);
     return;
   }
   // As computeDistances (batch_query.cpp): an arena capped at `threads` slots, chunks stolen by idle threads;
@@ -322,7 +423,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
         tbb::blocked_range<std::size_t>(0, count, chunk),
         [&](const tbb::blocked_range<std::size_t>& range) {
           tsanAcquire(&before);
-          for (std::size_t i = range.begin(); i != range.end(); ++i) query(i);
+          queryRange(range.begin(), range.end());
           tsanRelease(&after);
         },
         tbb::simple_partitioner());

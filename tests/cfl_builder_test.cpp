@@ -403,6 +403,7 @@ TEST(CflBuilder, StorageIsWellFormedAndStatisticsMatchIt) {
           bytes(geometry.mesh.vertices) + bytes(geometry.mesh.triangles) + bytes(geometry.corners) +
           bytes(geometry.spheres) + bytes(geometry.planes) + bytes(geometry.leaf_corners) +
           bytes(geometry.leaf_spheres) + bytes(geometry.leaf_planes) + bytes(geometry.bvh.nodes) +
+          bytes(geometry.compact_nodes) +
           bytes(geometry.bvh.triangle_ids) + bytes(model.sign.welded_vertex) + bytes(model.sign.neighbors) +
           bytes(model.sign.vertex_normals) + bytes(model.sign.node_dipoles) +
           bytes(model.sign.dipole_index);

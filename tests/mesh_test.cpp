@@ -184,6 +184,25 @@ TEST(MeshModel, LeafOrderedCopiesAreTheDataOfTheTrianglesTheBvhNames) {
   }
 }
 
+// Point queries walk the Bvh on its compact copy: same links, and float boxes that hold the double ones (a
+// box rounded inward would prune a node holding the closest triangle).
+TEST(MeshModel, CompactNodesHoldTheBvhBoxesAndLinks) {
+  for (const TriangleMesh& mesh : {test::makeMessyMesh(), test::makeTorusKnot(), test::makeTriangleSoup(300, 5)}) {
+    const MeshModel model = makeMeshModel(mesh);
+    ASSERT_EQ(model.compact_nodes.size(), model.bvh.nodes.size());
+    for (std::size_t n = 0; n < model.bvh.nodes.size(); ++n) {
+      const BvhNode& node = model.bvh.nodes[n];
+      const CompactBvhNode& compact = model.compact_nodes[n];
+      EXPECT_EQ(compact.first, node.first) << "node " << n;
+      EXPECT_EQ(compact.count, node.count) << "node " << n;
+      for (int axis = 0; axis < 3; ++axis) {
+        EXPECT_LE(double(compact.min[axis]), node.box.min[axis]) << "node " << n;
+        EXPECT_GE(double(compact.max[axis]), node.box.max[axis]) << "node " << n;
+      }
+    }
+  }
+}
+
 // The query prunes pairs on these spheres and on the disk each cuts from its triangle's plane: every point of
 // a triangle must be inside its sphere, and the center must lie in the plane. The sphere must also be the
 // smallest: no center among random points of the plane near it (an independent search) needs less radius.

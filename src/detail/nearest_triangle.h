@@ -56,4 +56,53 @@ inline void nearestTriangle(const MeshModel& model, const Eigen::Vector3d& p, do
   }
 }
 
+/// As nearestTriangle, same contract, on MeshModel::compact_nodes (which must match the Bvh) and the
+/// corners in leaf order: an eighth of the node memory, one indirection less per triangle. Depth-first,
+/// nearer child first; a node popped after the best fell below its bound is skipped. Ties go to the triangle
+/// found first (deterministic, but the float boxes may order children unlike nearestTriangle).
+inline void nearestTriangleCompact(const MeshModel& model, const Eigen::Vector3d& p, double& best_squared,
+                                   int& best_triangle, Eigen::Vector3d* closest = nullptr) {
+  const auto& nodes = model.compact_nodes;
+  if (nodes.empty()) return;
+  const auto boxSquared = [&p](const CompactBvhNode& node) {
+    double sum = 0;
+    for (int axis = 0; axis < 3; ++axis) {
+      const double gap = std::max(double(node.min[axis]) - p[axis], 0.0) + std::max(p[axis] - double(node.max[axis]), 0.0);
+      sum += gap * gap;
+    }
+    return sum;
+  };
+  struct Pending {
+    double bound;
+    int node;
+  };
+  Pending stack[128];  // one pending sibling per level, as nearestTriangle
+  int top = 0;
+  stack[top++] = {boxSquared(nodes[0]), 0};
+  while (top > 0) {
+    const Pending pending = stack[--top];
+    if (pending.bound > best_squared) continue;
+    const CompactBvhNode& node = nodes[pending.node];
+    if (node.count > 0) {
+      for (int i = node.first; i < node.first + node.count; ++i) {
+        const auto& c = model.leaf_corners[i];
+        Eigen::Vector3d q;
+        const double d = pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q);
+        if (d < best_squared) {
+          best_squared = d;
+          best_triangle = model.bvh.triangle_ids[i];
+          if (closest) *closest = q;
+        }
+      }
+      continue;
+    }
+    const double d_left = boxSquared(nodes[node.first]);
+    const double d_right = boxSquared(nodes[node.first + 1]);
+    const bool left_first = d_left <= d_right;
+    const double d_far = left_first ? d_right : d_left;
+    const double d_near = left_first ? d_left : d_right;
+    if (d_far <= best_squared) stack[top++] = {d_far, left_first ? node.first + 1 : node.first};
+    if (d_near <= best_squared) stack[top++] = {d_near, left_first ? node.first : node.first + 1};
+  }
+}
 }  // namespace cfl::detail

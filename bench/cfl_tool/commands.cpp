@@ -24,8 +24,9 @@ namespace {
 
 constexpr const char* kBuildUsage = R"(usage: cfl build MESH [-o OUT.cfl] [--resolution N] [--padding P] [--threads T]
 
-Precomputes the CFL voxels of MESH (any format assimp reads: OBJ, STL, PLY, OFF, ...) and prints their
-statistics. Progress goes to standard error: a bar on a terminal, plain lines otherwise.
+Precomputes the discrete Voronoi regions (cells and their closest feature lists) of MESH (any format
+assimp reads: OBJ, STL, PLY, OFF, ...) and prints their statistics. Progress goes to standard error: a bar
+on a terminal, plain lines otherwise.
 
   -o, --output OUT.cfl  also save the model (load it with 'cfl info', 'cfl distance' or cfl::loadCflModel)
   --resolution N        0 (default): adaptive regions; N > 0: a uniform grid of N cells along the longest axis
@@ -295,7 +296,7 @@ int runSdf(const std::vector<std::string>& raw, Streams io) {
 
 const std::vector<Command>& commands() {
   static const std::vector<Command> list = {
-      {"build", "precompute the CFL voxels of a mesh, print statistics, optionally save them", runBuild},
+      {"build", "precompute the Voronoi regions of a mesh, print statistics, optionally save them", runBuild},
       {"info", "statistics of a mesh's CFL model or of a saved .cfl file", runInfo},
       {"distance", "distance between two meshes at poses from a file, as CSV (CFL and/or FCL OBBRSS)", runDistance},
       {"sdf", "exact (signed) distance from points of a file to a mesh, with closest points, as CSV", runSdf},

@@ -102,7 +102,7 @@ TriangleMesh readMeshArgument(const std::string& path) {
 CflModel obtainCflModel(const std::string& path, BuildOptions options, std::ostream& progress_out) {
   if (isCflFile(path)) return loadCflModel(path);
   TriangleMesh mesh = loadMesh(path);
-  ProgressReporter progress(progress_out, "building CFL voxels of " + path, stderrIsTerminal());
+  ProgressReporter progress(progress_out, "building the Voronoi regions of " + path, stderrIsTerminal());
   options.progress = progress.callback();
   const auto start = std::chrono::steady_clock::now();
   CflModel model = buildCflModel(std::move(mesh), options);

@@ -175,11 +175,29 @@ std::vector<WindingDipole> nodeDipoles(const MeshModel& model) {
 }  // namespace
 
 std::int64_t memoryBytes(const MeshSign& sign) {
+  // The far field, when built, belongs to whoever asked for a winding number; a model's statistics count what
+  // building it costs.
   return std::int64_t(sign.welded_vertex.capacity() * sizeof(std::int32_t) +
                       sign.neighbors.capacity() * sizeof(std::array<std::int32_t, 3>) +
-                      sign.vertex_normals.capacity() * sizeof(Eigen::Vector3d) +
-                      sign.node_dipoles.capacity() * sizeof(WindingDipole) +
-                      sign.dipole_index.capacity() * sizeof(std::int32_t));
+                      sign.vertex_normals.capacity() * sizeof(Eigen::Vector3d));
+}
+
+const WindingField& windingField(const MeshModel& model, const MeshSign& sign) {
+  static const WindingField none;
+  if (!sign.winding) return none;
+  WindingFieldCache& cache = *sign.winding;
+  std::call_once(cache.once, [&] {
+    const std::vector<WindingDipole> all = nodeDipoles(model);
+    WindingField& field = cache.field;
+    field.dipole_index.assign(all.size(), -1);
+    for (std::size_t n = 0; n < all.size(); ++n) {
+      if (model.bvh.nodes[n].isLeaf()) continue;
+      field.dipole_index[n] = std::int32_t(field.node_dipoles.size());
+      field.node_dipoles.push_back(all[n]);
+    }
+    field.node_dipoles.shrink_to_fit();
+  });
+  return cache.field;
 }
 
 MeshSign analyzeMeshSign(const MeshModel& model) {
@@ -310,15 +328,7 @@ MeshSign analyzeMeshSign(const MeshModel& model) {
     n = length > 0 ? Eigen::Vector3d(closure.orientation * n / length) : Eigen::Vector3d::Zero();
   }
 
-  // Only inner nodes keep theirs (see MeshSign::node_dipoles).
-  const std::vector<WindingDipole> all = nodeDipoles(model);
-  sign.dipole_index.assign(all.size(), -1);
-  for (std::size_t n = 0; n < all.size(); ++n) {
-    if (model.bvh.nodes[n].isLeaf()) continue;
-    sign.dipole_index[n] = std::int32_t(sign.node_dipoles.size());
-    sign.node_dipoles.push_back(all[n]);
-  }
-  sign.node_dipoles.shrink_to_fit();
+  sign.winding = std::make_shared<WindingFieldCache>();
   return sign;
 }
 

@@ -295,7 +295,7 @@ void validateOptions(const CflModel& model, const PointQueryOptions& options) {
                 " (SignMethod::kWindingNumber signs any mesh by its generalized winding number)");
   }
   if (options.signed_distance && options.sign_method == SignMethod::kWindingNumber &&
-      model.sign.dipole_index.size() != model.geometry.bvh.nodes.size()) {
+      !model.sign.winding) {
     throw Error("cannot sign distances to this mesh: its MeshSign was not computed (see analyzeMeshSign)");
   }
 }

@@ -29,7 +29,8 @@ double solidAngle(const Eigen::Vector3d& p, const Eigen::Vector3d& a3, const Eig
 
 double windingNumber(const MeshModel& model, const MeshSign& sign, const Eigen::Vector3d& p_M) {
   const auto& nodes = model.bvh.nodes;
-  if (nodes.empty() || sign.dipole_index.size() != nodes.size()) return 0;
+  const WindingField& field = windingField(model, sign);
+  if (nodes.empty() || field.dipole_index.size() != nodes.size()) return 0;
   // Depth-first; one pending sibling per level of a median-split tree (see nearestTriangle).
   int stack[128];
   int top = 0;
@@ -45,7 +46,7 @@ double windingNumber(const MeshModel& model, const MeshSign& sign, const Eigen::
       }
       continue;
     }
-    const WindingDipole& d = sign.node_dipoles[sign.dipole_index[index]];
+    const WindingDipole& d = field.node_dipoles[field.dipole_index[index]];
     const Eigen::Vector3d r = d.center - p_M;
     const double distance_squared = r.squaredNorm();
     if (distance_squared > kWindingFarFactor * kWindingFarFactor * d.radius * d.radius) {

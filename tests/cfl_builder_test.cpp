@@ -405,8 +405,7 @@ TEST(CflBuilder, StorageIsWellFormedAndStatisticsMatchIt) {
           bytes(geometry.leaf_spheres) + bytes(geometry.leaf_planes) + bytes(geometry.bvh.nodes) +
           bytes(geometry.compact_nodes) +
           bytes(geometry.bvh.triangle_ids) + bytes(model.sign.welded_vertex) + bytes(model.sign.neighbors) +
-          bytes(model.sign.vertex_normals) + bytes(model.sign.node_dipoles) +
-          bytes(model.sign.dipole_index);
+          bytes(model.sign.vertex_normals);
       EXPECT_EQ(stats.memory_bytes, arrays);
       EXPECT_GE(stats.build_seconds, 0.0);
     }

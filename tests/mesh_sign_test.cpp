@@ -171,16 +171,21 @@ TEST(MeshSign, ModelsCarryTheAnalysis) {
   const CflModel model = buildCflModel(test::makeHemisphere(1.0, 6, 16));
   EXPECT_FALSE(model.sign.closure.closed);
   EXPECT_NE(model.sign.closure.reason.find("boundary"), std::string::npos);
-  ASSERT_EQ(model.sign.dipole_index.size(), model.geometry.bvh.nodes.size());
+  // The winding number's far field is built on first use, once, and shared by copies of the model.
+  ASSERT_TRUE(model.sign.winding);
+  const CflModel copy = model;
+  const WindingField& field = windingField(model.geometry, model.sign);
+  EXPECT_EQ(&windingField(copy.geometry, copy.sign), &field);
+  ASSERT_EQ(field.dipole_index.size(), model.geometry.bvh.nodes.size());
   std::size_t inner = 0;
   for (std::size_t n = 0; n < model.geometry.bvh.nodes.size(); ++n) {
     if (model.geometry.bvh.nodes[n].isLeaf()) {
-      EXPECT_EQ(model.sign.dipole_index[n], -1);
+      EXPECT_EQ(field.dipole_index[n], -1);
     } else {
-      EXPECT_EQ(model.sign.dipole_index[n], int(inner++));
+      EXPECT_EQ(field.dipole_index[n], int(inner++));
     }
   }
-  EXPECT_EQ(model.sign.node_dipoles.size(), inner);
+  EXPECT_EQ(field.node_dipoles.size(), inner);
 }
 
 TEST(MeshSign, LoadedModelsDeriveTheSameAnalysis) {
@@ -194,11 +199,13 @@ TEST(MeshSign, LoadedModelsDeriveTheSameAnalysis) {
     EXPECT_EQ(loaded.sign.welded_vertex, built.sign.welded_vertex);
     EXPECT_EQ(loaded.sign.neighbors, built.sign.neighbors);
     EXPECT_EQ(loaded.sign.vertex_normals, built.sign.vertex_normals);
-    EXPECT_EQ(loaded.sign.dipole_index, built.sign.dipole_index);
-    ASSERT_EQ(loaded.sign.node_dipoles.size(), built.sign.node_dipoles.size());
-    for (std::size_t n = 0; n < built.sign.node_dipoles.size(); ++n) {
-      EXPECT_EQ(loaded.sign.node_dipoles[n].moment, built.sign.node_dipoles[n].moment);
-      EXPECT_EQ(loaded.sign.node_dipoles[n].radius, built.sign.node_dipoles[n].radius);
+    const WindingField& loaded_field = windingField(loaded.geometry, loaded.sign);
+    const WindingField& built_field = windingField(built.geometry, built.sign);
+    EXPECT_EQ(loaded_field.dipole_index, built_field.dipole_index);
+    ASSERT_EQ(loaded_field.node_dipoles.size(), built_field.node_dipoles.size());
+    for (std::size_t n = 0; n < built_field.node_dipoles.size(); ++n) {
+      EXPECT_EQ(loaded_field.node_dipoles[n].moment, built_field.node_dipoles[n].moment);
+      EXPECT_EQ(loaded_field.node_dipoles[n].radius, built_field.node_dipoles[n].radius);
     }
   }
 }

@@ -8,6 +8,8 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -66,8 +68,21 @@ struct WindingDipole {
 /// of the 1/2 that separates inside from outside on the test meshes, for a few more exact triangles.
 constexpr double kWindingFarFactor = 3.0;
 
-/// What signing needs beyond the MeshModel, in frame M. About 160 bytes per triangle, most of it the
-/// winding number's per-node far field.
+/// The winding number's far field: node n of the model's Bvh is summed by node_dipoles[dipole_index[n]].
+/// Leaves have none (dipole_index -1): one triangle's exact solid angle costs about what its expansion would.
+struct WindingField {
+  std::vector<WindingDipole> node_dipoles;
+  std::vector<std::int32_t> dipole_index;
+};
+
+/// Where a MeshSign keeps its WindingField once built (see windingField).
+struct WindingFieldCache {
+  std::once_flag once;
+  WindingField field;
+};
+
+/// What signing needs beyond the MeshModel, in frame M. About 36 bytes per triangle, and about 136 more once
+/// a winding number has been asked for.
 struct MeshSign {
   MeshClosure closure;
   /// welded_vertex[v]: the representative of mesh vertex v among vertices at the same position.
@@ -79,24 +94,27 @@ struct MeshSign {
   /// Angle-weighted pseudonormal of each welded vertex (indexed by welded_vertex[v]; unit, oriented outward
   /// using closure.orientation; zero where not defined).
   std::vector<Eigen::Vector3d> vertex_normals;
-  /// The far field of the model's inner Bvh nodes (used by windingNumber only): node n's is
-  /// node_dipoles[dipole_index[n]]. Leaves have none (dipole_index -1): one triangle's exact solid angle costs
-  /// about what its expansion would.
-  std::vector<WindingDipole> node_dipoles;
-  std::vector<std::int32_t> dipole_index;
+  /// The winding number's far field, built by windingField on first use (SignMethod::kWindingNumber), so
+  /// that models never signed by winding number do not carry it. Copies of a model share it; null in a
+  /// MeshSign not made by analyzeMeshSign.
+  std::shared_ptr<WindingFieldCache> winding;
 };
+
+/// The far field of `sign` for `model` (the model it was analysed with), built on the first call (O(n),
+/// thread-safe: concurrent first calls build it once) and reused after. Empty when sign.winding is null.
+const WindingField& windingField(const MeshModel& model, const MeshSign& sign);
 
 /// Bytes the arrays of `sign` hold (capacity).
 std::int64_t memoryBytes(const MeshSign& sign);
 
 /// Analyses `model`'s mesh: welding, edges, orientation, degenerate triangles, self-intersections (through
-/// its Bvh), pseudonormals, the winding number's far field. O(n log n) on one thread; deterministic. Never
+/// its Bvh), pseudonormals (the winding number's far field comes later, on demand). O(n log n) on one thread; deterministic. Never
 /// throws for a valid MeshModel: a mesh that cannot be signed gets closed == false and a reason.
 MeshSign analyzeMeshSign(const MeshModel& model);
 
 /// The generalized winding number of the mesh around p (frame M): 1 inside a closed outward mesh (-1 inside an
 /// inside-out one: multiply by MeshClosure::orientation), 0 outside, fractional near holes. Uses
-/// `model.bvh` and `sign.node_dipoles` for the far field (see SignMethod::kWindingNumber); 0 when `sign` was
+/// `model.bvh` and windingField(model, sign) for the far field (see SignMethod::kWindingNumber); 0 when `sign` was
 /// not computed for `model`. Thread-safe, allocation-free; O(log n) nodes far from the mesh, more near it.
 double windingNumber(const MeshModel& model, const MeshSign& sign, const Eigen::Vector3d& p_M);
 

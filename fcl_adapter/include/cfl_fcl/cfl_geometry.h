@@ -11,7 +11,12 @@
 /// throws cfl::Error explaining how to fix the link (see docs/fcl_adapter.md).
 ///
 /// Pairs with a CFLGeometry, in either order and through both overloads:
-///   - CFLGeometry / CFLGeometry: cfl::computeDistance on both models, cfl::computeCollision.
+///   - CFLGeometry / CFLGeometry: cfl::computeDistance on both models, cfl::computeCollision. When both
+///     meshes are closed (cfl::MeshClosure): with request.enable_signed_distance, cfl::computeSignedDistance
+///     (minus the penetration depth when the bodies overlap, one inside the other included, with the deepest
+///     point and its closest point as nearest points); collide also reports one body wholly inside the
+///     other, and with enable_contact every contact carries the bodies' depth and normal
+///     (cfl::computePenetration). See docs/signed_distance.md.
 ///   - CFLGeometry / fcl::BVHModel<BV> for every BV FCL ships: the same, with the BVHModel's triangles as the
 ///     other mesh (a cfl::MeshModel copy cached per BVHModel, see forgetBvhModel for its lifetime rule).
 ///   - CFLGeometry / fcl::Sphere, fcl::Capsule, fcl::Box, fcl::Convex: from the CFL model, exact, reported as
@@ -40,8 +45,9 @@
 /// Results follow FCL's conventions for BVHModel meshes: world-frame nearest points when
 /// request.enable_nearest_points is set; b1/b2 are triangle ids in each model's own triangle list; o1/o2
 /// are the geometries in argument order; distance is 0 (never negative) when the meshes touch or overlap,
-/// with request.enable_signed_distance or without (no penetration depth is computed, as with BVHModel).
-/// Shapes on a closed mesh are the exception above (negative inside when signed).
+/// with request.enable_signed_distance or without (no penetration depth is computed, as with BVHModel),
+/// except for the closed pairs above: two closed CFL meshes, and shapes on a closed mesh (negative inside
+/// when signed). A CFLGeometry against a BVHModel is never signed: the BVHModel has no inside.
 /// request.rel_err / abs_err become cfl::DistanceOptions::rel_err / abs_err (early termination with the
 /// guarantee stated there). request.isSatisfied(result) on entry returns at once, as FCL's dispatch does.
 

@@ -16,8 +16,8 @@ namespace cfl {
 namespace {
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
-// Sub-triangles evaluated before the search gives up narrowing the interval (it still returns a certified
-// one, wider than asked): a bound on time and memory whatever the meshes.
+// Signed point queries made before the search stops splitting triangles (it still returns a certified
+// interval, wider than asked): a bound on time and memory whatever the meshes.
 constexpr std::int64_t kMostEvaluations = 4'000'000;
 
 // One direction of the search: the surface of `skin` (its triangles moved into the solid's frame) measured
@@ -31,15 +31,14 @@ struct Direction {
 
 // The signed distance to the solid at one point of the skin, frame of the solid.
 struct Sample {
-  Eigen::Vector3d p;
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
   double signed_distance = 0;
   Eigen::Vector3d closest = Eigen::Vector3d::Zero();
   int triangle = -1;  // of the solid
 };
 
-// A piece of a skin triangle, with what bounds the depth over it.
-// Either a node of the skin's Bvh (node >= 0: its bounding sphere, corners unused) or a piece of one of its
-// triangles.
+// What the search queues, with a bound on the depth over it: a node of the skin's Bvh (node >= 0: its
+// bounding sphere; corners unused) or a piece of one of the skin's triangles.
 struct Piece {
   double upper = 0;  // bound on the depth of every point of the piece inside the solid
   int direction = 0;

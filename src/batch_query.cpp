@@ -1,6 +1,7 @@
 #include "cfl/batch_query.h"
 
 #include "cfl/error.h"
+#include "detail/tsan_annotations.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
@@ -12,35 +13,11 @@
 #include <algorithm>
 #include <string>
 
-// ThreadSanitizer does not see the synchronization inside libtbb.so (not instrumented), so without help it
-// takes the caller's writes before the batch and its reads after it as racing with the chunks. The
-// annotations below state the order TBB guarantees: parallel_for starts every chunk after the call and
-// returns after every chunk. They compile to nothing outside TSan builds.
-#if defined(__has_feature)
-#if __has_feature(thread_sanitizer)
-#define CFL_TSAN 1
-#endif
-#endif
-#if defined(__SANITIZE_THREAD__)
-#define CFL_TSAN 1
-#endif
-#ifdef CFL_TSAN
-#include <sanitizer/tsan_interface.h>
-#endif
-
 namespace cfl {
 namespace {
 
-inline void tsanRelease([[maybe_unused]] void* token) {
-#ifdef CFL_TSAN
-  __tsan_release(token);
-#endif
-}
-inline void tsanAcquire([[maybe_unused]] void* token) {
-#ifdef CFL_TSAN
-  __tsan_acquire(token);
-#endif
-}
+using detail::tsanAcquire;
+using detail::tsanRelease;
 
 // Runs query(i) for every i in [0, count) on up to `threads` threads (the caller is one of them) in chunks of
 // about options.chunk_size poses, through oneTBB: a task arena capped at `threads` slots, so the batch never

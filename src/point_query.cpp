@@ -8,6 +8,7 @@
 #include "cfl/triangle_distance.h"
 #include "detail/exact_arithmetic.h"
 #include "detail/nearest_triangle.h"
+#include "detail/tsan_annotations.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -19,33 +20,11 @@
 #include <sstream>
 #include <string>
 
-// TSan annotations of the batch's ordering, as in batch_query.cpp: TSan does not see the synchronization
-// inside the uninstrumented libtbb. They compile to nothing outside TSan builds.
-#if defined(__has_feature)
-#if __has_feature(thread_sanitizer)
-#define CFL_TSAN 1
-#endif
-#endif
-#if defined(__SANITIZE_THREAD__)
-#define CFL_TSAN 1
-#endif
-#ifdef CFL_TSAN
-#include <sanitizer/tsan_interface.h>
-#endif
-
 namespace cfl {
 namespace {
 
-inline void tsanRelease([[maybe_unused]] void* token) {
-#ifdef CFL_TSAN
-  __tsan_release(token);
-#endif
-}
-inline void tsanAcquire([[maybe_unused]] void* token) {
-#ifdef CFL_TSAN
-  __tsan_acquire(token);
-#endif
-}
+using detail::tsanAcquire;
+using detail::tsanRelease;
 
 // The list scan compares lower bounds with the best distance so far; both went through a rounding or two, so
 // a bound is shrunk by far more than their error before it may end the scan.

@@ -24,14 +24,13 @@
 #include "cfl/mesh.h"
 #include "cfl/mesh_io.h"
 #include "cfl_fcl/cfl_geometry.h"
+#include "libfcl_distance.h"
 #include "measure.h"
 #include "pose_generator.h"
 #include "tool_args.h"
 
 #include <fcl/fcl.h>
 
-#include <dlfcn.h>
-#include <link.h>
 
 #include <algorithm>
 #include <chrono>
@@ -289,28 +288,8 @@ struct Scene {
 
 // ---- libfcl's own fcl::distance ----------------------------------------------------------------------------
 
-using DistanceObjectsFn = double (*)(const fcl::CollisionObjectd*, const fcl::CollisionObjectd*,
-                                     const fcl::DistanceRequestd&, fcl::DistanceResultd&);
-
-DistanceObjectsFn libfclDistance() {
-  std::string path;
-  dl_iterate_phdr(
-      [](dl_phdr_info* info, size_t, void* data) {
-        if (info->dlpi_name == nullptr || std::strstr(info->dlpi_name, "libfcl.so") == nullptr) return 0;
-        *static_cast<std::string*>(data) = info->dlpi_name;
-        return 1;
-      },
-      &path);
-  void* handle = path.empty() ? nullptr : dlopen(path.c_str(), RTLD_LAZY | RTLD_NOLOAD);
-  // fcl::distance<double>(const CollisionObject*, const CollisionObject*, const DistanceRequest&,
-  // DistanceResult&), as libfcl.so 0.7 exports it.
-  void* symbol = handle == nullptr ? nullptr
-                                   : dlsym(handle,
-                                           "_ZN3fcl8distanceIdEET_PKNS_15CollisionObjectIS1_EES5_RKNS_"
-                                           "15DistanceRequestIS1_EERNS_14DistanceResultIS1_EE");
-  if (symbol == nullptr) throw std::runtime_error("cannot find libfcl.so's own fcl::distance<double>");
-  return reinterpret_cast<DistanceObjectsFn>(symbol);
-}
+using cfl::bench::DistanceObjectsFn;
+using cfl::bench::libfclDistance;
 
 DistanceObjectsFn g_libfcl_distance = nullptr;
 

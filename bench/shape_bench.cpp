@@ -19,12 +19,11 @@
 #include "cfl/mesh_io.h"
 #include "cfl/sphere_query.h"
 #include "cfl_fcl/cfl_geometry.h"
+#include "libfcl_distance.h"
 #include "measure.h"
 
 #include <fcl/fcl.h>
 
-#include <dlfcn.h>
-#include <link.h>
 #include <time.h>
 
 #include <algorithm>
@@ -46,28 +45,8 @@
 namespace {
 
 using Transform = fcl::Transform3d;
-using DistanceObjectsFn = double (*)(const fcl::CollisionObjectd*, const fcl::CollisionObjectd*,
-                                     const fcl::DistanceRequestd&, fcl::DistanceResultd&);
-
-// libfcl's own fcl::distance<double> (objects overload): what a plain FCL program runs. The name
-// fcl::distance in this program is the adapter's, which would hand a pair without CFL to this anyway.
-DistanceObjectsFn libfclDistance() {
-  std::string path;
-  dl_iterate_phdr(
-      [](dl_phdr_info* info, size_t, void* data) {
-        if (info->dlpi_name == nullptr || std::strstr(info->dlpi_name, "libfcl.so") == nullptr) return 0;
-        *static_cast<std::string*>(data) = info->dlpi_name;
-        return 1;
-      },
-      &path);
-  void* handle = path.empty() ? nullptr : dlopen(path.c_str(), RTLD_LAZY | RTLD_NOLOAD);
-  void* symbol = handle == nullptr ? nullptr
-                                   : dlsym(handle,
-                                           "_ZN3fcl8distanceIdEET_PKNS_15CollisionObjectIS1_EES5_RKNS_"
-                                           "15DistanceRequestIS1_EERNS_14DistanceResultIS1_EE");
-  if (symbol == nullptr) throw std::runtime_error("cannot find libfcl.so's own fcl::distance<double>");
-  return reinterpret_cast<DistanceObjectsFn>(symbol);
-}
+using cfl::bench::DistanceObjectsFn;
+using cfl::bench::libfclDistance;
 
 struct Mesh {
   std::string name;

@@ -31,7 +31,8 @@ namespace {
 constexpr const char* kBenchUsage = R"(usage: cfl bench [A [B]] [--queries N] [--bands LIST] [--resolution N] [--seed S]
                  [--repeats R] [--clock wall|cpu] [--order interleaved|blocked] [--threads T]
                  [--json OUT.json] [--plot OUT.png]
-                 [--moving FRAMES [--separation F]] [--rel-err E] [--abs-err A] [--no-table]
+                 [--moving FRAMES [--separation F]] [--rel-err E] [--abs-err A]
+                 [--points N] [--shapes N] [--penetration N] [--no-table]
 
 Times exact mesh-mesh distance queries of CFL (A's voxels, B as a plain mesh with its Bvh) against FCL 0.7
 fcl::distance on BVHModel<OBBRSS> and BVHModel<RSS> (enable_nearest_points = true), in one process, on the
@@ -84,7 +85,21 @@ Extra sections, printed after the table only when asked for:
                    rel_err alone buys nothing; pass a large A (e.g. the diagonal) to see rel_err's effect
                    alone. Checks true <= d <= min(true * (1 + E), true + A) (+ 1e-9 of the diagonal) with
                    true = OBBRSS's exact distance; FCL 0.7 ignores both for mesh-mesh distance.
-  --no-table       skip the per-band table (with --moving or --rel-err, to run only those)
+  --points N       point queries: N points within 5% of the diagonal of A's surface and N uniform in
+                   twice A's box; CFL per point (unsigned; signed too when A is closed) and the whole set
+                   through computePointDistances on all threads, against FCL's distance of a sphere of radius
+                   0 to A's BVHModel<OBBRSS>. Checked against FCL, brute force deciding (1e-9 of the
+                   diagonal). Open3D, the issue's peer for points, is in cfl_point_bench.
+  --shapes N       a sphere (radius 0.02 diagonals), a capsule (radius 0.01, length 0.05) and a box (0.03 x
+                   0.02 x 0.015) at N poses per positive band (--bands, default 0.005,0.02 here), at exact
+                   distances: the core's point, segment and box queries against FCL's fcl::distance of the
+                   shape to A's BVHModel<OBBRSS>; agreement to 1e-9 of the diagonal for spheres, 1e-5 for
+                   capsules and boxes (FCL's GJK tolerance). Through the FCL adapter: cfl_shape_bench.
+  --penetration N  A against itself at N overlapping poses: computePenetration (the bodies' depth,
+                   certified to 1e-4 of the diagonal) against fcl::collide with contacts (first contact,
+                   every contact); checks each interval's width and witness points. Skipped when A is not
+                   closed.
+  --no-table       skip the per-band table (to run only the sections asked for)
 )";
 
 struct BandReport {
@@ -185,7 +200,8 @@ void writePlot(const std::string& png, const std::vector<BandReport>& bands, con
 int runBench(const std::vector<std::string>& raw, Streams io) {
   const ParsedArgs args = parseArgs(
       raw, {{"queries"}, {"bands"}, {"resolution"}, {"seed"}, {"repeats"}, {"clock"}, {"order"}, {"threads"}, {"json"},
-            {"plot"}, {"moving"}, {"separation"}, {"rel-err"}, {"abs-err"}, {"no-table", false}});
+            {"plot"}, {"moving"}, {"separation"}, {"rel-err"}, {"abs-err"}, {"points"}, {"shapes"}, {"penetration"},
+            {"no-table", false}});
   if (args.has("help")) {
     io.out << kBenchUsage;
     return 0;
@@ -214,8 +230,13 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
   DistanceOptions approximate_options;
   approximate_options.rel_err = parseReal(args.get("rel-err").value_or("0"), "--rel-err", 0, 1e9);
   approximate_options.abs_err = parseReal(args.get("abs-err").value_or("0"), "--abs-err", 0, 1e300);
+  const int point_count = int(parseInteger(args.get("points").value_or("0"), "--points", 0, 100000000));
+  const int shape_poses = int(parseInteger(args.get("shapes").value_or("0"), "--shapes", 0, 1000000));
+  const int penetration_poses = int(parseInteger(args.get("penetration").value_or("0"), "--penetration", 0, 1000000));
   const bool table = !args.has("no-table");
-  if (!table && moving_frames == 0 && !approximate) throw UsageError("--no-table leaves nothing to run without --moving or --rel-err/--abs-err");
+  if (!table && moving_frames == 0 && !approximate && point_count == 0 && shape_poses == 0 && penetration_poses == 0) {
+    throw UsageError("--no-table leaves nothing to run without --moving, --rel-err/--abs-err, --points, --shapes or --penetration");
+  }
   const auto json_path = args.get("json");
   const auto plot_path = args.get("plot");
   if ((json_path || plot_path) && !table) throw UsageError("--json and --plot describe the table; drop --no-table");
@@ -338,6 +359,12 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
     passed = runMovingSection(context, moving_frames, separation, seed, io.out) && passed;
   }
   if (approximate) passed = runApproximateSection(context, band_poses, approximate_options, io.out) && passed;
+  if (point_count > 0) passed = runPointSection(context, point_count, seed, io.out) && passed;
+  if (shape_poses > 0) {
+    const std::vector<double> shape_bands = args.has("bands") ? bands : std::vector<double>{0.005, 0.02};
+    passed = runShapeSection(context, shape_bands, shape_poses, seed, io.out) && passed;
+  }
+  if (penetration_poses > 0) passed = runPenetrationSection(context, penetration_poses, seed, io.out) && passed;
 
   if (json_path) {
     std::ofstream json(*json_path);
@@ -381,8 +408,8 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
   }
   if (!passed) {
     io.err << format("cfl bench: FAILED: a CFL distance differs from the reference (FCL OBBRSS, or brute force where "
-                     "the two disagree) by more than 1e-9 of the diagonal (%g), or breaks the rel_err/abs_err bound; "
-                     "see the rows marked MISMATCH\n",
+                     "the two disagree) by more than 1e-9 of the diagonal (%g), breaks the rel_err/abs_err bound, "
+                     "or a section's check failed; see the rows marked MISMATCH or FAILED\n",
                      diagonal);
     return 1;
   }

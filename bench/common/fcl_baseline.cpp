@@ -7,8 +7,13 @@
 #include <fcl/math/bv/RSS.h>
 #include <fcl/narrowphase/detail/traversal/collision_node.h>
 #include <fcl/narrowphase/detail/traversal/distance/mesh_distance_traversal_node.h>
+#include <fcl/geometry/shape/box.h>
+#include <fcl/geometry/shape/capsule.h>
+#include <fcl/geometry/shape/sphere.h>
+#include <fcl/narrowphase/collision.h>
 #include <fcl/narrowphase/distance.h>
 
+#include <algorithm>
 #include <chrono>
 #include <vector>
 
@@ -99,6 +104,40 @@ FclCountedDistance fclCountedDistance(const FclModel& a, const Eigen::Isometry3d
   }
   return countedDistance<fcl::detail::MeshDistanceTraversalNodeRSS<double>>(*a.impl().rss, X_WA, *b.impl().rss,
                                                                            X_WB);
+}
+
+double fclShapeDistance(const FclShape& shape, const Eigen::Isometry3d& X_WS, const FclModel& model,
+                        const Eigen::Isometry3d& X_WM) {
+  if (model.bv() != FclBv::kOBBRSS) throw Error("FCL shape distance: the mesh model must be OBBRSS");
+  fcl::DistanceRequestd request(true);
+  fcl::DistanceResultd result;
+  switch (shape.kind) {
+    case FclShape::Kind::kSphere: {
+      const fcl::Sphered sphere(shape.radius);
+      return fcl::distance(&sphere, X_WS, model.impl().geometry(), X_WM, request, result);
+    }
+    case FclShape::Kind::kCapsule: {
+      const fcl::Capsuled capsule(shape.radius, shape.length);
+      return fcl::distance(&capsule, X_WS, model.impl().geometry(), X_WM, request, result);
+    }
+    case FclShape::Kind::kBox: {
+      const fcl::Boxd box(shape.sides);
+      return fcl::distance(&box, X_WS, model.impl().geometry(), X_WM, request, result);
+    }
+  }
+  throw Error("FCL shape distance: unknown shape kind");
+}
+
+double fclDeepestContact(const FclModel& a, const Eigen::Isometry3d& X_WA, const FclModel& b,
+                         const Eigen::Isometry3d& X_WB, std::size_t max_contacts) {
+  requireSameBv(a, b);
+  fcl::CollisionRequestd request(max_contacts, true);
+  fcl::CollisionResultd result;
+  fcl::collide(a.impl().geometry(), X_WA, b.impl().geometry(), X_WB, request, result);
+  double deepest = 0;
+  for (std::size_t i = 0; i < result.numContacts(); ++i)
+    deepest = std::max(deepest, result.getContact(i).penetration_depth);
+  return deepest;
 }
 
 }  // namespace cfl::bench

@@ -67,4 +67,27 @@ struct FclCountedDistance {
 FclCountedDistance fclCountedDistance(const FclModel& a, const Eigen::Isometry3d& X_WA, const FclModel& b,
                                       const Eigen::Isometry3d& X_WB);
 
+/// A primitive shape as FCL 0.7 takes it, centered at its frame's origin: a sphere of radius `radius`
+/// (0 makes it a point), a capsule of radius `radius` and segment length `length` along z, or a box of side
+/// lengths `sides`.
+struct FclShape {
+  enum class Kind { kSphere, kCapsule, kBox } kind = Kind::kSphere;
+  double radius = 0;
+  double length = 0;
+  Eigen::Vector3d sides = Eigen::Vector3d::Zero();
+};
+
+/// fcl::distance between the shape at X_WS and the mesh of `model` at X_WM (FCL's shape-against-BVHModel
+/// traversal, GJK per triangle except for spheres), enable_nearest_points = true: the baseline of the shape
+/// and point sections. The model must be OBBRSS. Builds FCL's shape object on every call, as an FCL user
+/// holding a CollisionObject does not; the cost is a few allocations, far below the query's.
+double fclShapeDistance(const FclShape& shape, const Eigen::Isometry3d& X_WS, const FclModel& model,
+                        const Eigen::Isometry3d& X_WM);
+
+/// The deepest contact of fcl::collide between two models (same bv) with contacts enabled and at most
+/// `max_contacts` of them: FCL's per-triangle-pair local depth, 0 when the meshes do not touch. The baseline
+/// of the penetration section.
+double fclDeepestContact(const FclModel& a, const Eigen::Isometry3d& X_WA, const FclModel& b,
+                         const Eigen::Isometry3d& X_WB, std::size_t max_contacts);
+
 }  // namespace cfl::bench

@@ -442,6 +442,65 @@ TEST_F(ToolCliTest, BenchRelErrWithoutAbsErrStaysExact) {
   }
 }
 
+// The last number of a section's row: its largest difference from the reference, over the diagonal.
+double lastNumber(const std::string& row) {
+  const auto bar = row.rfind('|');
+  return bar == std::string::npos ? std::nan("") : std::strtod(row.c_str() + bar + 1, nullptr);
+}
+
+TEST_F(ToolCliTest, BenchQueryKindSectionsAnswerEveryQueryExactlyOnAClosedMesh) {
+  const std::string mesh = writeMesh("torus.obj", test::makeTorus(1.0, 0.35, 16, 8));
+  const ToolRun r = run({"bench", mesh, "--no-table", "--points", "200", "--shapes", "3", "--penetration", "2",
+                         "--repeats", "1", "--resolution", "10"});
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  EXPECT_FALSE(contains(r.out, "CFL med")) << r.out;
+  EXPECT_FALSE(contains(r.out, "MISMATCH")) << r.out;
+  EXPECT_FALSE(contains(r.out, "FAILED")) << r.out;
+  ASSERT_TRUE(contains(r.out, "Point queries: 200 points per set")) << r.out;
+  for (const char* set : {"near (5%) ", "box (2x) "}) {
+    const std::string row = lineStartingWith(r.out, set);
+    ASSERT_FALSE(row.empty()) << set << "\n" << r.out;
+    EXPECT_LE(lastNumber(row), 1e-9) << row;
+    EXPECT_FALSE(contains(row, " - ")) << row;  // closed: a signed column
+  }
+  for (const char* shape : {"sphere ", "capsule ", "box "}) {
+    for (const char* band : {"0.5%", "2.0%"}) {
+      std::string row;
+      std::istringstream lines(r.out);
+      for (std::string line; std::getline(lines, line);)
+        if (line.rfind(shape, 0) == 0 && contains(line, band)) row = line;
+      ASSERT_FALSE(row.empty()) << shape << band << "\n" << r.out;
+      EXPECT_LE(lastNumber(row), std::string(shape) == "sphere " ? 1e-9 : 1e-5) << row;
+    }
+  }
+  ASSERT_TRUE(contains(r.out, "Penetration of A with itself at 2 overlapping poses")) << r.out;
+  EXPECT_FALSE(contains(r.out, "skipped")) << r.out;
+  // The width column: the certified interval, at most 1e-4 of the diagonal.
+  const std::string header = lineStartingWith(r.out, "    FCL 1 ct");
+  ASSERT_FALSE(header.empty()) << r.out;
+  const auto at = r.out.find(header) + header.size() + 1;
+  const std::string row = r.out.substr(at, r.out.find('\n', at) - at);
+  std::istringstream fields(row.substr(row.rfind('|') + 1));
+  double depth = -1, width = -1;
+  fields >> depth >> width;
+  EXPECT_GT(depth, 0) << row;
+  EXPECT_LE(width, 1e-4 * (1 + 1e-6)) << row;
+}
+
+TEST_F(ToolCliTest, BenchQueryKindSectionsOnAnOpenMeshSkipSignsAndPenetrationSayingWhy) {
+  TriangleMesh open = test::makeTorus(1.0, 0.35, 16, 8);
+  open.triangles.pop_back();
+  const std::string mesh = writeMesh("open.obj", open);
+  const ToolRun r = run({"bench", mesh, "--no-table", "--points", "100", "--penetration", "2", "--repeats", "1",
+                         "--resolution", "10"});
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  EXPECT_TRUE(contains(r.out, "the mesh is not closed, so no signed column")) << r.out;
+  const std::string row = lineStartingWith(r.out, "near (5%) ");
+  EXPECT_TRUE(contains(row, " - ")) << row;
+  EXPECT_LE(lastNumber(row), 1e-9) << row;
+  EXPECT_TRUE(contains(r.out, "skipped: A does not bound a solid (open: 3 boundary edges")) << r.out;
+}
+
 TEST_F(ToolCliTest, BenchSectionOptionsRejectBadValuesNamingOptionAndValue) {
   const std::string mesh = writeMesh("box.obj", test::makeBox({0, 0, 0}, {1, 1, 1}));
   const std::vector<std::pair<std::vector<std::string>, std::vector<std::string>>> cases = {
@@ -457,6 +516,9 @@ TEST_F(ToolCliTest, BenchSectionOptionsRejectBadValuesNamingOptionAndValue) {
       {{"--moving", "5", "--separation", "nan"}, {"--separation", "'nan'"}},
       {{"--separation", "0.1"}, {"--separation", "--moving"}},
       {{"--no-table"}, {"--no-table"}},
+      {{"--points", "-1"}, {"--points", "'-1'"}},
+      {{"--shapes", "x"}, {"--shapes", "'x'"}},
+      {{"--penetration", "1.5"}, {"--penetration", "'1.5'"}},
       {{"--no-table", "--moving", "3", "--json", "x.json"}, {"--json", "--no-table"}},
   };
   for (const auto& [options, expected] : cases) {

@@ -1,14 +1,10 @@
 #include "cfl/batch_query.h"
 
 #include "cfl/error.h"
-#include "detail/tsan_annotations.h"
+#include "detail/parallel_chunks.h"
 
-#include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
-#include <tbb/parallel_for.h>
-#include <tbb/partitioner.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <string>
@@ -16,42 +12,19 @@
 namespace cfl {
 namespace {
 
-using detail::tsanAcquire;
-using detail::tsanRelease;
-
-// Runs query(i) for every i in [0, count) on up to `threads` threads (the caller is one of them) in chunks of
-// about options.chunk_size poses, through oneTBB: a task arena capped at `threads` slots, so the batch never
-// uses more threads than asked even when the program runs other TBB work, and a parallel_for over
-// chunk-sized ranges whose idle threads steal the remaining chunks, so a few expensive queries do not leave
-// the other threads idle. Each query writes only its own result, so the answers do not depend on which
-// thread ran which chunk. An exception thrown by a query (poses are validated up front, so std::bad_alloc or
-// the like) cancels the chunks not yet started and is rethrown in the caller by TBB.
+// Runs query(i) for every i in [0, count) on up to options.threads threads in chunks of about
+// options.chunk_size poses (detail::parallelChunks). Each query writes only its own result, so the answers do
+// not depend on which thread ran which chunk; poses are validated up front, so what a query may throw is
+// std::bad_alloc or the like, rethrown in the caller.
 template <typename Query>
 void runParallel(std::size_t count, const BatchOptions& options, const Query& query) {
   const int threads = batchThreadCount(options.threads, count);
   const std::size_t chunk = options.chunk_size > 0
                                 ? static_cast<std::size_t>(options.chunk_size)
                                 : std::clamp<std::size_t>(count / (8 * std::size_t(threads)), 1, 64);
-  if (threads <= 1) {
-    for (std::size_t i = 0; i < count; ++i) query(i);
-    return;
-  }
-  int before = 0, after = 0;  // Addresses for the TSan annotations only.
-  tsanRelease(&before);
-  tbb::task_arena arena(threads);
-  arena.execute([&] {
-    // simple_partitioner splits down to the grain size and no further: chunks of chunk / 2 to chunk poses,
-    // each a unit of stealing, as BatchOptions::chunk_size documents.
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, count, chunk),
-        [&](const tbb::blocked_range<std::size_t>& range) {
-          tsanAcquire(&before);
-          for (std::size_t i = range.begin(); i != range.end(); ++i) query(i);
-          tsanRelease(&after);
-        },
-        tbb::simple_partitioner());
+  detail::parallelChunks(count, threads, chunk, [&](std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i != end; ++i) query(i);
   });
-  tsanAcquire(&after);
 }
 
 void validatePoses(const Eigen::Isometry3d& X_WA, const Eigen::Isometry3d* X_WB, std::size_t count,

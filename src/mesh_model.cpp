@@ -51,7 +51,7 @@ Eigen::Vector4d boundingSphere(const std::array<Eigen::Vector3d, 3>& c) {
 // Triangles per Bvh leaf, at most. With one, the 2n - 1 nodes were most of the model next to the lists; the
 // queries split a leaf of several into its triangles wherever they would have split an inner node, so the
 // levels below a leaf cost no pruning.
-constexpr int kBvhLeafTriangles = 4;
+constexpr int kBvhLeafTriangles = 8;
 
 }  // namespace
 

@@ -182,6 +182,22 @@ TEST(Bvh, SpheresAreNoLargerThanTheBoxCenteredOneAndWithinJungsBound) {
   }
 }
 
+// Node boxes are stored in float, rounded outward: they must still hold every vertex where float rounding
+// moves coordinates (far from the origin) and where float has no finite value for them (past 3.4e38, which
+// validateMesh allows).
+TEST(Bvh, FloatBoxesHoldTheVerticesFarFromTheOriginAndPastFloatRange) {
+  for (const double scale : {1.0, 1e30, 1e45}) {
+    for (const double offset : {0.0, 1e7, -3.3e38}) {
+      TriangleMesh mesh = test::makeTorus();
+      for (Eigen::Vector3d& v : mesh.vertices) v = scale * v + Eigen::Vector3d(offset, 0.5 * offset, 0);
+      for (int max_leaf_size : {1, 8}) {
+        checkInvariants(mesh, buildBvh(mesh, max_leaf_size), max_leaf_size,
+                        "scale " + std::to_string(scale) + " offset " + std::to_string(offset));
+      }
+    }
+  }
+}
+
 TEST(Bvh, SingleTriangleMeshIsOneLeaf) {
   TriangleMesh mesh;
   mesh.vertices = {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 2, 1)};

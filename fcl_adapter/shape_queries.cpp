@@ -96,7 +96,7 @@ bool meshTriangleInside(const cfl::MeshModel& mesh, const Transform& tf_c, const
   stack[top++] = 0;
   while (top > 0) {
     const cfl::BvhNode& node = nodes[stack[--top]];
-    if ((node.box.min.array() > box_M.max.array()).any() || (node.box.max.array() < box_M.min.array()).any()) continue;
+    if ((node.box().min.array() > box_M.max.array()).any() || (node.box().max.array() < box_M.min.array()).any()) continue;
     if (node.isLeaf()) {
       for (int i = node.first; i < node.first + node.count; ++i)
         if (shape.contains(X_SM * mesh.leaf_corners[i][0])) return true;
@@ -190,7 +190,7 @@ void polyhedronContacts(const Geometry& cfl, const cfl::CflModel& model, const T
   if (!nodes.empty()) stack[top++] = 0;
   while (top > 0 && added < budget) {
     const cfl::BvhNode& node = nodes[stack[--top]];
-    if ((node.box.min.array() > box_M.max.array()).any() || (node.box.max.array() < box_M.min.array()).any()) continue;
+    if ((node.box().min.array() > box_M.max.array()).any() || (node.box().max.array() < box_M.min.array()).any()) continue;
     if (!node.isLeaf()) {
       stack[top++] = node.first + 1;
       stack[top++] = node.first;

@@ -58,6 +58,19 @@ Eigen::Vector3d enclosingCenter(const ForEachPoint& forEachPoint, const Eigen::V
   return best;
 }
 
+// The largest float at most x, and the smallest at least x: an infinity where x is beyond float's range
+// (validateMesh allows coordinates up to 1e50), which the box tests take as no bound on that side.
+float floatBelow(double x) {
+  float f = static_cast<float>(x);
+  if (double(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return f;
+}
+float floatAbove(double x) {
+  float f = static_cast<float>(x);
+  if (double(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+
 }  // namespace
 
 Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
@@ -128,7 +141,10 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
     }
     {
       BvhNode& node = bvh.nodes[range.node];
-      node.box = box;
+      for (int axis = 0; axis < 3; ++axis) {
+        node.box_min[axis] = floatBelow(box.min[axis]);
+        node.box_max[axis] = floatAbove(box.max[axis]);
+      }
       node.center = center;
       node.radius = std::sqrt(radius_squared);
       auto forEachVertex = [&](const auto& visit) {
@@ -175,6 +191,7 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
     stack.push_back({left + 1, middle, range.end});
     stack.push_back({left, range.begin, middle});
   }
+  bvh.nodes.shrink_to_fit();  // reserved for leaves of one triangle
   return bvh;
 }
 

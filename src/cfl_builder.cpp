@@ -353,7 +353,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   while (top > 0) {
     const BvhNode& node = nodes[stack[--top]];
     const Eigen::Vector3d outside =
-        (node.box.min - center).cwiseMax(center - node.box.max).cwiseMax(0.0);
+        (node.box().min - center).cwiseMax(center - node.box().max).cwiseMax(0.0);
     if ((outside.array() - half).max(0.0).matrix().squaredNorm() > upper_bound_squared) continue;
     if (cone_usable && coneExcludes(outside.norm(), node.center, node.radius)) continue;
     if (node.isLeaf()) {

@@ -92,13 +92,23 @@ std::int64_t countSelfIntersections(const MeshModel& model, const std::vector<st
     const BvhNode& a = nodes[i];
     const BvhNode& b = nodes[j];
     if (i == j) {
-      if (a.isLeaf()) continue;  // one triangle per leaf: nothing to pair within it
+      if (a.isLeaf()) {  // the leaf's own triangles, each pair once
+        for (int x = a.first; x < a.first + a.count; ++x) {
+          for (int y = x + 1; y < a.first + a.count; ++y) {
+            const int s = model.bvh.triangle_ids[x], t = model.bvh.triangle_ids[y];
+            if (shareVertex(s, t) || !trianglesIntersect(model.corners[s].data(), model.corners[t].data())) continue;
+            if (found == 0) *first = {std::min(s, t), std::max(s, t)};
+            if (++found >= cap) return found;
+          }
+        }
+        continue;
+      }
       stack.push_back({a.first, a.first + 1});
       stack.push_back({a.first + 1, a.first + 1});
       stack.push_back({a.first, a.first});
       continue;
     }
-    if (!overlap(a.box, b.box)) continue;
+    if (!overlap(a.box(), b.box())) continue;
     if (a.isLeaf() && b.isLeaf()) {
       for (int x = a.first; x < a.first + a.count; ++x) {
         for (int y = b.first; y < b.first + b.count; ++y) {

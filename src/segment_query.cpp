@@ -75,7 +75,7 @@ double nodeLowerBound(const BvhNode& node, const Eigen::Vector3d& a, const Eigen
   const double to_center = std::sqrt(pointSegmentSquaredDistance(node.center, a, ab, ab_squared));
   const double sphere = to_center - node.radius;
   const Eigen::Vector3d gap =
-      (node.box.min - segment_box.max).cwiseMax(segment_box.min - node.box.max).cwiseMax(0.0);
+      (node.box().min - segment_box.max).cwiseMax(segment_box.min - node.box().max).cwiseMax(0.0);
   // The nodes' oriented boxes (the gap along each box axis) were tried too: tighter on some meshes, looser
   // per cost on others, no gain overall in cfl_shape_bench.
   return std::max(sphere, gap.norm());

@@ -70,7 +70,7 @@ void checkInvariants(const TriangleMesh& mesh, const Bvh& bvh, int max_leaf_size
     ASSERT_LT(index, node_count);
     ASSERT_EQ(++node_visits[index], 1) << "node " << index << " reached twice";
     const BvhNode& node = bvh.nodes[index];
-    ASSERT_FALSE(node.box.empty()) << "node " << index;
+    ASSERT_FALSE(node.box().empty()) << "node " << index;
     if (node.isLeaf()) {
       EXPECT_GE(node.count, 1);
       EXPECT_LE(node.count, max_leaf_size) << "node " << index;
@@ -81,7 +81,7 @@ void checkInvariants(const TriangleMesh& mesh, const Bvh& bvh, int max_leaf_size
         const auto& tri = mesh.triangles[bvh.triangle_ids[slot]];
         for (int k = 0; k < 3; ++k) {
           const Eigen::Vector3d& v = mesh.vertices[tri[k]];
-          EXPECT_TRUE(boxContains(node.box, v)) << "node " << index << " box misses triangle " << bvh.triangle_ids[slot];
+          EXPECT_TRUE(boxContains(node.box(), v)) << "node " << index << " box misses triangle " << bvh.triangle_ids[slot];
           EXPECT_TRUE(sphereContains(node, v))
               << "node " << index << " sphere misses triangle " << bvh.triangle_ids[slot] << " by "
               << (v - node.center).norm() - node.radius;
@@ -91,7 +91,7 @@ void checkInvariants(const TriangleMesh& mesh, const Bvh& bvh, int max_leaf_size
       ASSERT_GE(node.first, 1);
       ASSERT_LT(node.first + 1, node_count);
       for (int child = node.first; child <= node.first + 1; ++child) {
-        EXPECT_TRUE(boxContains(node.box, bvh.nodes[child].box)) << "node " << index << " child " << child;
+        EXPECT_TRUE(boxContains(node.box(), bvh.nodes[child].box())) << "node " << index << " child " << child;
         stack.push_back(child);
       }
     }
@@ -129,7 +129,7 @@ void checkInvariants(const TriangleMesh& mesh, const Bvh& bvh, int max_leaf_size
     for (int t : below[*it]) {
       for (int k = 0; k < 3; ++k) {
         const Eigen::Vector3d& v = mesh.vertices[mesh.triangles[t][k]];
-        EXPECT_TRUE(boxContains(node.box, v)) << "node " << *it << " box misses triangle " << t;
+        EXPECT_TRUE(boxContains(node.box(), v)) << "node " << *it << " box misses triangle " << t;
         EXPECT_TRUE(sphereContains(node, v)) << "node " << *it << " sphere misses triangle " << t << " by "
                                              << (v - node.center).norm() - node.radius;
         const Eigen::Vector3d local = node.obb_axes.transpose() * (v - node.obb_center);
@@ -166,8 +166,11 @@ TEST(Bvh, SpheresAreNoLargerThanTheBoxCenteredOneAndWithinJungsBound) {
       for (int n = node.subtree_first; n < node.subtree_first + node.subtree_count; ++n) {
         for (int index : named.mesh.triangles[bvh.triangle_ids[n]]) points.push_back(named.mesh.vertices[index]);
       }
+      // The vertices' own box: the node's is rounded outward to float, its center shifted by that rounding.
+      Aabb box;
+      for (const auto& p : points) box.extend(p);
       double box_radius = 0;
-      for (const auto& p : points) box_radius = std::max(box_radius, (p - node.box.center()).norm());
+      for (const auto& p : points) box_radius = std::max(box_radius, (p - box.center()).norm());
       EXPECT_LE(node.radius, box_radius * (1 + 1e-12)) << "node " << i;
       if (node.subtree_count > 64) continue;
       double diameter = 0;
@@ -175,6 +178,22 @@ TEST(Bvh, SpheresAreNoLargerThanTheBoxCenteredOneAndWithinJungsBound) {
         for (const auto& q : points) diameter = std::max(diameter, (p - q).norm());
       }
       EXPECT_LE(node.radius, 0.6124 * diameter * (1 + 1e-12)) << "node " << i;
+    }
+  }
+}
+
+// Node boxes are stored in float, rounded outward: they must still hold every vertex where float rounding
+// moves coordinates (far from the origin) and where float has no finite value for them (past 3.4e38, which
+// validateMesh allows).
+TEST(Bvh, FloatBoxesHoldTheVerticesFarFromTheOriginAndPastFloatRange) {
+  for (const double scale : {1.0, 1e30, 1e45}) {
+    for (const double offset : {0.0, 1e7, -3.3e38}) {
+      TriangleMesh mesh = test::makeTorus();
+      for (Eigen::Vector3d& v : mesh.vertices) v = scale * v + Eigen::Vector3d(offset, 0.5 * offset, 0);
+      for (int max_leaf_size : {1, 8}) {
+        checkInvariants(mesh, buildBvh(mesh, max_leaf_size), max_leaf_size,
+                        "scale " + std::to_string(scale) + " offset " + std::to_string(offset));
+      }
     }
   }
 }

@@ -57,7 +57,7 @@ void expectSameModel(const CflModel& a, const CflModel& b) {
   ASSERT_EQ(a.geometry.bvh.nodes.size(), b.geometry.bvh.nodes.size());
   for (std::size_t n = 0; n < a.geometry.bvh.nodes.size(); ++n) {
     const BvhNode &x = a.geometry.bvh.nodes[n], &y = b.geometry.bvh.nodes[n];
-    ASSERT_TRUE(sameBits(x.box.min, y.box.min) && sameBits(x.box.max, y.box.max) && sameBits(x.center, y.center) &&
+    ASSERT_TRUE(sameBits(x.box().min, y.box().min) && sameBits(x.box().max, y.box().max) && sameBits(x.center, y.center) &&
                 sameBits(x.radius, y.radius) && x.first == y.first && x.count == y.count)
         << "bvh node " << n;
   }

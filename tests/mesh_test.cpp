@@ -196,8 +196,8 @@ TEST(MeshModel, CompactNodesHoldTheBvhBoxesAndLinks) {
       EXPECT_EQ(compact.first, node.first) << "node " << n;
       EXPECT_EQ(compact.count, node.count) << "node " << n;
       for (int axis = 0; axis < 3; ++axis) {
-        EXPECT_LE(double(compact.min[axis]), node.box.min[axis]) << "node " << n;
-        EXPECT_GE(double(compact.max[axis]), node.box.max[axis]) << "node " << n;
+        EXPECT_LE(double(compact.min[axis]), node.box().min[axis]) << "node " << n;
+        EXPECT_GE(double(compact.max[axis]), node.box().max[axis]) << "node " << n;
       }
     }
   }

@@ -9,16 +9,21 @@
 
 namespace cfl {
 
-/// One node of a Bvh. Inner nodes have count == 0 and children at `first` and `first + 1`; leaves have
-/// count > 0 and own Bvh::triangle_ids[first, first + count).
+/// One node of a Bvh, 192 bytes in three cache lines. Inner nodes have count == 0 and children at `first`
+/// and `first + 1`; leaves have count > 0 and own Bvh::triangle_ids[first, first + count). All bounds are in
+/// the mesh's frame M and length unit, and each holds every triangle below the node.
 struct alignas(64) BvhNode {
-  // Fields in the order a distance query reads them, one cache line per group: the sphere and the links
-  // for every node it reaches, the oriented box for the nodes it bounds closely, the axis-aligned box for
-  // the Bvh-against-Bvh paths.
+  // Fields in the order a query reads them: the first cache line holds the sphere, the links and the
+  // axis-aligned box (every node a walk reaches reads it), the other two the subtree range and the oriented
+  // box (for the nodes a distance query bounds closely).
   Eigen::Vector3d center;   ///< Center of a sphere bounding every triangle below (not the box's circumsphere).
   double radius = 0;        ///< Radius of that sphere.
   std::int32_t first = 0;
   std::int32_t count = 0;
+  /// Axis-aligned bounds of every triangle below, in float rounded outward: they hold the double bounds of
+  /// the vertices, so that tests on them stay conservative. Read them through box().
+  float box_min[3] = {0, 0, 0};
+  float box_max[3] = {0, 0, 0};
   /// Every triangle below the node, leaf or not: Bvh::triangle_ids[subtree_first, subtree_first +
   /// subtree_count). Lets a query test two small subtrees pair by pair instead of splitting them further.
   std::int32_t subtree_first = 0;
@@ -27,12 +32,18 @@ struct alignas(64) BvhNode {
   /// <= obb_half[i]. The axes are the principal axes of the node's vertices (orthonormal, least spread
   /// first), so the box is thin across a nearly flat patch; distance queries bound node pairs with it where
   /// axis-aligned boxes and spheres are loose.
-  alignas(64) Eigen::Matrix3d obb_axes = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d obb_axes = Eigen::Matrix3d::Identity();
   Eigen::Vector3d obb_center = Eigen::Vector3d::Zero();
   Eigen::Vector3d obb_half = Eigen::Vector3d::Zero();
-  alignas(64) Aabb box;     ///< Bounds of every triangle below, mesh frame.
 
   bool isLeaf() const { return count > 0; }
+  /// The axis-aligned box in double (exact conversions of box_min and box_max).
+  Aabb box() const {
+    Aabb b;
+    b.min = Eigen::Vector3d(box_min[0], box_min[1], box_min[2]);
+    b.max = Eigen::Vector3d(box_max[0], box_max[1], box_max[2]);
+    return b;
+  }
 };
 
 /// The hierarchy; nodes[0] is the root. Built top-down by splitting the longest axis of the centroid
@@ -44,7 +55,7 @@ struct Bvh {
 };
 
 /// Builds the hierarchy of `mesh` (which must pass validateMesh) with at most `max_leaf_size` triangles
-/// per leaf. O(n log n) time, O(n) memory.
+/// per leaf (values below 1 count as 1): about 2n / max_leaf_size nodes. O(n log n) time, O(n) memory.
 Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size = 1);
 
 }  // namespace cfl

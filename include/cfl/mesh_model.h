@@ -11,9 +11,9 @@
 
 namespace cfl {
 
-/// A Bvh node as a point query reads it: its box rounded outward to float and its links (BvhNode's first
-/// and count), 32 bytes where a BvhNode takes 256, so that a walk reading only boxes touches an eighth of the
-/// memory.
+/// A Bvh node as a point query reads it: its float box (BvhNode::box_min and box_max, rounded outward) and its
+/// links (BvhNode's first and count), 32 bytes where a BvhNode takes 192, so that a walk reading only boxes
+/// touches a sixth of the memory.
 struct CompactBvhNode {
   float min[3];
   std::int32_t first;
@@ -42,7 +42,7 @@ struct MeshModel {
   std::vector<std::array<Eigen::Vector3d, 3>> leaf_corners;
   std::vector<Eigen::Vector4d> leaf_spheres;
   std::vector<Eigen::Vector4d> leaf_planes;
-  /// bvh.nodes again as CompactBvhNode, same indices; each box holds the node's double box.
+  /// bvh.nodes again as CompactBvhNode, same indices and the same float boxes.
   std::vector<CompactBvhNode> compact_nodes;
   Aabb bounds;  ///< Bounds of the vertices that triangles use.
 };

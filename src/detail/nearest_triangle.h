@@ -27,7 +27,7 @@ inline void nearestTriangle(const MeshModel& model, const Eigen::Vector3d& p, do
   // sibling per level, so 128 entries cannot overflow.
   int stack[128];
   int top = 0;
-  if (pointBoxSquaredDistance(p, nodes[0].box) > best_squared) return;
+  if (pointBoxSquaredDistance(p, nodes[0].box()) > best_squared) return;
   stack[top++] = 0;
   while (top > 0) {
     const BvhNode& node = nodes[stack[--top]];
@@ -45,8 +45,8 @@ inline void nearestTriangle(const MeshModel& model, const Eigen::Vector3d& p, do
       }
       continue;
     }
-    const double d_left = pointBoxSquaredDistance(p, nodes[node.first].box);
-    const double d_right = pointBoxSquaredDistance(p, nodes[node.first + 1].box);
+    const double d_left = pointBoxSquaredDistance(p, nodes[node.first].box());
+    const double d_right = pointBoxSquaredDistance(p, nodes[node.first + 1].box());
     // Push the farther child first so the nearer one is searched first and tightens the bound.
     const bool left_first = d_left <= d_right;
     const double d_far = left_first ? d_right : d_left;

@@ -16,9 +16,14 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <sstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace cfl {
 namespace {
@@ -45,8 +50,10 @@ class LeafPrefetcher {
   static constexpr std::ptrdiff_t kStep = 4;  // points between two stages of one point
   static constexpr std::ptrdiff_t kAhead = 3 * kStep;
 
-  LeafPrefetcher(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d* points_W)
-      : regions_(model.regions), X_MW_(X_WM.inverse(Eigen::Isometry)), points_W_(points_W) {
+  // Position j of the walk queries points_W[order[j]], or points_W[j] without an order.
+  LeafPrefetcher(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d* points_W,
+                 const std::uint32_t* order)
+      : regions_(model.regions), X_MW_(X_WM.inverse(Eigen::Isometry)), points_W_(points_W), order_(order) {
     const Aabb box = regions_.bounds();
     min_ = box.min;
     max_ = box.max;
@@ -88,7 +95,7 @@ class LeafPrefetcher {
     std::uint32_t& leaf = slot(j);
     leaf = kNone;
     if (j < begin_) return;
-    const Eigen::Vector3d p_M = X_MW_ * points_W_[j];
+    const Eigen::Vector3d p_M = X_MW_ * points_W_[order_ ? order_[j] : std::size_t(j)];
     if (!((p_M.array() >= min_.array()).all() && (p_M.array() <= max_.array()).all())) return;
     leaf = regions_.locate(p_M).leaf;
     prefetch(&regions_.leaf_list[leaf]);
@@ -99,11 +106,61 @@ class LeafPrefetcher {
   const RegionTree& regions_;
   Eigen::Isometry3d X_MW_;
   const Eigen::Vector3d* points_W_;
+  const std::uint32_t* order_;
   Eigen::Vector3d min_, max_;
   bool usable_ = false;
   std::ptrdiff_t begin_ = 0;
   std::uint32_t ring_[kRing];
 };
+
+// The bits 0..9 of v spread to bits 0, 3, ..., 27.
+inline std::uint32_t spreadBits(std::uint32_t v) {
+  v &= 0x3ffu;
+  v = (v | v << 16) & 0x030000ffu;
+  v = (v | v << 8) & 0x0300f00fu;
+  v = (v | v << 4) & 0x030c30c3u;
+  v = (v | v << 2) & 0x09249249u;
+  return v;
+}
+
+// Callers' points come in any order, often random: consecutive queries then touch unrelated leaves, lists
+// and triangles, each a cache miss in arrays of many megabytes. Queried along a Morton curve (10 bits per
+// axis, over the regions' box grown to three times its size; points beyond share the border cells),
+// neighbours in the walk are neighbours in space and mostly read what the previous query left in cache.
+// Returns the point indices in that order (an LSD radix sort, three passes of 10 bits: linear, stable, so
+// the order is deterministic), or nothing when the batch is too small or too large to index in 32 bits.
+std::vector<std::uint32_t> spatialOrder(const CflModel& model, const Eigen::Isometry3d& X_WM,
+                                        const Eigen::Vector3d* points_W, std::size_t count) {
+  constexpr std::size_t kMinimum = 256;  // below this the sort's fixed cost is not won back
+  if (count < kMinimum || count > std::size_t(std::numeric_limits<std::uint32_t>::max())) return {};
+  const Aabb box = model.regions.nodes.empty() ? model.geometry.bounds : model.regions.bounds();
+  const Eigen::Vector3d center = box.center();
+  const double extent = std::max(box.size().maxCoeff(), std::numeric_limits<double>::min());
+  const Eigen::Vector3d low = center - Eigen::Vector3d::Constant(1.5 * extent);
+  const double scale = 1024 / (3 * extent);
+  const Eigen::Isometry3d X_MW = X_WM.inverse(Eigen::Isometry);
+  // (key << 32 | index): one 8-byte word per point moves in each pass.
+  std::vector<std::uint64_t> items(count), scratch(count);
+  std::array<std::array<std::uint32_t, 1024>, 3> histogram{};
+  for (std::size_t i = 0; i < count; ++i) {
+    const Eigen::Vector3d q = (X_MW * points_W[i] - low) * scale;
+    std::uint32_t cell[3];
+    for (int axis = 0; axis < 3; ++axis) cell[axis] = std::uint32_t(std::clamp(q[axis], 0.0, 1023.0));
+    const std::uint32_t key = spreadBits(cell[0]) | spreadBits(cell[1]) << 1 | spreadBits(cell[2]) << 2;
+    for (int pass = 0; pass < 3; ++pass) ++histogram[pass][(key >> (10 * pass)) & 0x3ffu];
+    items[i] = std::uint64_t(key) << 32 | i;
+  }
+  for (int pass = 0; pass < 3; ++pass) {
+    std::uint32_t sum = 0;
+    for (std::uint32_t& bucket : histogram[pass]) sum += std::exchange(bucket, sum);
+    const int shift = 32 + 10 * pass;
+    for (const std::uint64_t item : items) scratch[histogram[pass][(item >> shift) & 0x3ffu]++] = item;
+    items.swap(scratch);
+  }
+  std::vector<std::uint32_t> order(count);
+  for (std::size_t i = 0; i < count; ++i) order[i] = std::uint32_t(items[i]);
+  return order;
+}
 
 // The Bvh walk: on the compact nodes when the model has them (makeMeshModel builds them; a MeshModel put
 // together by hand may not).
@@ -377,14 +434,17 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   }
   validateOptions(model, options);
   const int threads = batchThreadCount(options.threads, count);
-  auto query = [&](std::size_t i) { results[i] = pointDistance(model, X_WM, points_W[i], options); };
-  // Queries [begin, end) in order, with the leaf data of the points ahead prefetched.
+  const std::vector<std::uint32_t> order = spatialOrder(model, X_WM, points_W, count);
+  const std::uint32_t* ordered = order.empty() ? nullptr : order.data();
+  // Queries positions [begin, end) of the walk, with the leaf data of the points ahead prefetched; each
+  // answer goes to its caller's index.
   auto queryRange = [&](std::size_t begin, std::size_t end) {
-    LeafPrefetcher prefetcher(model, X_WM, points_W);
+    LeafPrefetcher prefetcher(model, X_WM, points_W, ordered);
     prefetcher.start(std::ptrdiff_t(begin), std::ptrdiff_t(end));
-    for (std::size_t i = begin; i != end; ++i) {
-      prefetcher.advance(std::ptrdiff_t(i), std::ptrdiff_t(end));
-      query(i);
+    for (std::size_t j = begin; j != end; ++j) {
+      prefetcher.advance(std::ptrdiff_t(j), std::ptrdiff_t(end));
+      const std::size_t i = ordered ? ordered[j] : j;
+      results[i] = pointDistance(model, X_WM, points_W[i], options);
     }
   };
   if (threads <= 1) {

@@ -41,19 +41,18 @@ inline void prefetch([[maybe_unused]] const void* address) {
 #endif
 }
 
-// A batch queries points whose leaves are scattered over arrays of many megabytes (the rock's lists: 18 MB),
-// and each query's first reads form a chain of cache misses: leaf -> list index -> list offset -> the list's
-// ids and entry bounds. The batch walks that chain for the points a few places ahead, one link per stage,
-// with prefetches, so that a query finds them cached. It only reads the model: results do not change.
+// A batch too small to sort (spatialOrder) queries points in the caller's order, whose leaves may be
+// scattered over arrays of many megabytes (the rock's lists: 18 MB), and each query's first reads form a
+// chain of cache misses: leaf -> list index -> list offset -> the list's ids and entry bounds. The batch
+// walks that chain for the points a few places ahead, one link per stage, with prefetches, so that a query
+// finds them cached. It only reads the model: results do not change.
 class LeafPrefetcher {
  public:
   static constexpr std::ptrdiff_t kStep = 4;  // points between two stages of one point
   static constexpr std::ptrdiff_t kAhead = 3 * kStep;
 
-  // Position j of the walk queries points_W[order[j]], or points_W[j] without an order.
-  LeafPrefetcher(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d* points_W,
-                 const std::uint32_t* order)
-      : regions_(model.regions), X_MW_(X_WM.inverse(Eigen::Isometry)), points_W_(points_W), order_(order) {
+  LeafPrefetcher(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d* points_W)
+      : regions_(model.regions), X_MW_(X_WM.inverse(Eigen::Isometry)), points_W_(points_W) {
     const Aabb box = regions_.bounds();
     min_ = box.min;
     max_ = box.max;
@@ -95,7 +94,7 @@ class LeafPrefetcher {
     std::uint32_t& leaf = slot(j);
     leaf = kNone;
     if (j < begin_) return;
-    const Eigen::Vector3d p_M = X_MW_ * points_W_[order_ ? order_[j] : std::size_t(j)];
+    const Eigen::Vector3d p_M = X_MW_ * points_W_[j];
     if (!((p_M.array() >= min_.array()).all() && (p_M.array() <= max_.array()).all())) return;
     leaf = regions_.locate(p_M).leaf;
     prefetch(&regions_.leaf_list[leaf]);
@@ -106,7 +105,6 @@ class LeafPrefetcher {
   const RegionTree& regions_;
   Eigen::Isometry3d X_MW_;
   const Eigen::Vector3d* points_W_;
-  const std::uint32_t* order_;
   Eigen::Vector3d min_, max_;
   bool usable_ = false;
   std::ptrdiff_t begin_ = 0;
@@ -125,19 +123,18 @@ inline std::uint32_t spreadBits(std::uint32_t v) {
 
 // Callers' points come in any order, often random: consecutive queries then touch unrelated leaves, lists
 // and triangles, each a cache miss in arrays of many megabytes. Queried along a Morton curve (10 bits per
-// axis, over the regions' box grown to three times its size; points beyond share the border cells),
-// neighbours in the walk are neighbours in space and mostly read what the previous query left in cache.
+// axis over the regions' box, where the lists are; points outside share its border cells), neighbours in
+// the walk are neighbours in space and mostly read what the previous query left in cache.
 // Returns the point indices in that order (an LSD radix sort, three passes of 10 bits: linear, stable, so
 // the order is deterministic), or nothing when the batch is too small or too large to index in 32 bits.
 std::vector<std::uint32_t> spatialOrder(const CflModel& model, const Eigen::Isometry3d& X_WM,
                                         const Eigen::Vector3d* points_W, std::size_t count) {
-  constexpr std::size_t kMinimum = 256;  // below this the sort's fixed cost is not won back
+  constexpr std::size_t kMinimum = 256;  // a few leaves' worth: little to share, and the histograms' fixed cost
   if (count < kMinimum || count > std::size_t(std::numeric_limits<std::uint32_t>::max())) return {};
   const Aabb box = model.regions.nodes.empty() ? model.geometry.bounds : model.regions.bounds();
-  const Eigen::Vector3d center = box.center();
   const double extent = std::max(box.size().maxCoeff(), std::numeric_limits<double>::min());
-  const Eigen::Vector3d low = center - Eigen::Vector3d::Constant(1.5 * extent);
-  const double scale = 1024 / (3 * extent);
+  const Eigen::Vector3d low = box.min;
+  const double scale = 1024 / extent;
   const Eigen::Isometry3d X_MW = X_WM.inverse(Eigen::Isometry);
   // (key << 32 | index): one 8-byte word per point moves in each pass.
   std::vector<std::uint64_t> items(count), scratch(count);
@@ -260,6 +257,31 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
   nearestTriangleFast(model.geometry, p_M, best_squared, best_triangle, &closest);
 }
 
+// searchNearest with a hint: `hint_squared` (or infinity), a bound that is likely to be a little above the
+// closest distance, e.g. from the answer for a point nearby (distance being 1-Lipschitz, no more than that
+// point's distance plus the step between them). Barely inflated, it bounds a first search, so that fewer
+// candidates pass the bounds; the first search finds what the plain one would (the same triangle, ties
+// included: either finds the first triangle of its list or walk at the least distance, and a bound above
+// that distance leaves that triangle in), unless nothing lies below the bound (rounding put it a hair
+// under the closest), and then the plain search runs.
+void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
+                       int& best_triangle, Eigen::Vector3d& closest) {
+  const double seed = hint_squared * (1 + 1e-9);
+  if (seed > 0 && seed < best_squared) {
+    double found_squared = seed;
+    int found = -1;
+    Eigen::Vector3d q;
+    searchNearest(model, p_M, found_squared, found, q);
+    if (found >= 0) {
+      best_squared = found_squared;
+      best_triangle = found;
+      closest = q;
+      return;
+    }
+  }
+  searchNearest(model, p_M, best_squared, best_triangle, closest);
+}
+
 // Which feature of triangle (a, b, c) holds the point closest to p: 0 the face, 1 + e edge e (corners e and
 // e + 1 mod 3), 4 + k vertex k. The Voronoi-region tests of Ericson (Real-Time Collision Detection, 5.1.5):
 // p's region decides, so the feature is the one that holds the closest point, as the pseudonormal theorem
@@ -344,15 +366,17 @@ void validatePoint(const Eigen::Vector3d& p_W, const char* what) {
   }
 }
 
-// The query proper, once pose, point and options are known to be good.
+// The query proper, once pose, point and options are known to be good. `hint_squared`: see
+// searchNearestFrom.
 PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p_W,
-                            const PointQueryOptions& options) {
+                            const PointQueryOptions& options,
+                            double hint_squared = std::numeric_limits<double>::infinity()) {
   const Eigen::Vector3d p_M = X_WM.inverse(Eigen::Isometry) * p_W;
   const double infinity = std::numeric_limits<double>::infinity();
   double best_squared = std::isinf(options.upper_bound) ? infinity : options.upper_bound * options.upper_bound;
   int triangle = -1;
   Eigen::Vector3d closest_M = Eigen::Vector3d::Zero();
-  searchNearest(model, p_M, best_squared, triangle, closest_M);
+  searchNearestFrom(model, hint_squared, p_M, best_squared, triangle, closest_M);
   double distance = triangle >= 0 ? std::sqrt(best_squared) : infinity;
   if (triangle >= 0 && !(distance < options.upper_bound)) triangle = -1, distance = infinity;  // rounding at the bound
 
@@ -436,14 +460,28 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   const int threads = batchThreadCount(options.threads, count);
   const std::vector<std::uint32_t> order = spatialOrder(model, X_WM, points_W, count);
   const std::uint32_t* ordered = order.empty() ? nullptr : order.data();
-  // Queries positions [begin, end) of the walk, with the leaf data of the points ahead prefetched; each
-  // answer goes to its caller's index.
+  // Queries positions [begin, end) of the walk; each answer goes to its caller's index.
   auto queryRange = [&](std::size_t begin, std::size_t end) {
-    LeafPrefetcher prefetcher(model, X_WM, points_W, ordered);
+    if (ordered) {
+      // Along the curve the previous point is close by: its distance plus the step, distance being
+      // 1-Lipschitz, hints at this one's (a hint never changes an answer, see searchNearestFrom). The
+      // leaves and lists are those of the previous queries, mostly cached: no prefetcher.
+      double previous = std::numeric_limits<double>::infinity();
+      Eigen::Vector3d previous_W = Eigen::Vector3d::Zero();
+      for (std::size_t j = begin; j != end; ++j) {
+        const std::size_t i = ordered[j];
+        const double hint = previous + (points_W[i] - previous_W).norm();
+        results[i] = pointDistance(model, X_WM, points_W[i], options, hint * hint);
+        previous = std::abs(results[i].distance);
+        previous_W = points_W[i];
+      }
+      return;
+    }
+    // In the caller's order, with the leaf data of the points ahead prefetched.
+    LeafPrefetcher prefetcher(model, X_WM, points_W);
     prefetcher.start(std::ptrdiff_t(begin), std::ptrdiff_t(end));
-    for (std::size_t j = begin; j != end; ++j) {
-      prefetcher.advance(std::ptrdiff_t(j), std::ptrdiff_t(end));
-      const std::size_t i = ordered ? ordered[j] : j;
+    for (std::size_t i = begin; i != end; ++i) {
+      prefetcher.advance(std::ptrdiff_t(i), std::ptrdiff_t(end));
       results[i] = pointDistance(model, X_WM, points_W[i], options);
     }
   };

@@ -127,8 +127,12 @@ inline std::uint32_t spreadBits(std::uint32_t v) {
 // the walk are neighbours in space and mostly read what the previous query left in cache.
 // Returns the point indices in that order (an LSD radix sort, three passes of 10 bits: linear, stable, so
 // the order is deterministic), or nothing when the batch is too small or too large to index in 32 bits.
+// forEachBlock(body) calls body(begin, end) over blocks covering [0, count), on the batch's threads: the
+// keys, the part of the sort that costs arithmetic, are computed there.
+template <class ForEachBlock>
 std::vector<std::uint32_t> spatialOrder(const CflModel& model, const Eigen::Isometry3d& X_WM,
-                                        const Eigen::Vector3d* points_W, std::size_t count) {
+                                        const Eigen::Vector3d* points_W, std::size_t count,
+                                        ForEachBlock&& forEachBlock) {
   constexpr std::size_t kMinimum = 256;  // a few leaves' worth: little to share, and the histograms' fixed cost
   if (count < kMinimum || count > std::size_t(std::numeric_limits<std::uint32_t>::max())) return {};
   const Aabb box = model.regions.nodes.empty() ? model.geometry.bounds : model.regions.bounds();
@@ -138,14 +142,18 @@ std::vector<std::uint32_t> spatialOrder(const CflModel& model, const Eigen::Isom
   const Eigen::Isometry3d X_MW = X_WM.inverse(Eigen::Isometry);
   // (key << 32 | index): one 8-byte word per point moves in each pass.
   std::vector<std::uint64_t> items(count), scratch(count);
+  forEachBlock([&](std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i != end; ++i) {
+      const Eigen::Vector3d q = (X_MW * points_W[i] - low) * scale;
+      std::uint32_t cell[3];
+      for (int axis = 0; axis < 3; ++axis) cell[axis] = std::uint32_t(std::clamp(q[axis], 0.0, 1023.0));
+      const std::uint32_t key = spreadBits(cell[0]) | spreadBits(cell[1]) << 1 | spreadBits(cell[2]) << 2;
+      items[i] = std::uint64_t(key) << 32 | i;
+    }
+  });
   std::array<std::array<std::uint32_t, 1024>, 3> histogram{};
-  for (std::size_t i = 0; i < count; ++i) {
-    const Eigen::Vector3d q = (X_MW * points_W[i] - low) * scale;
-    std::uint32_t cell[3];
-    for (int axis = 0; axis < 3; ++axis) cell[axis] = std::uint32_t(std::clamp(q[axis], 0.0, 1023.0));
-    const std::uint32_t key = spreadBits(cell[0]) | spreadBits(cell[1]) << 1 | spreadBits(cell[2]) << 2;
-    for (int pass = 0; pass < 3; ++pass) ++histogram[pass][(key >> (10 * pass)) & 0x3ffu];
-    items[i] = std::uint64_t(key) << 32 | i;
+  for (const std::uint64_t item : items) {
+    for (int pass = 0; pass < 3; ++pass) ++histogram[pass][(item >> (32 + 10 * pass)) & 0x3ffu];
   }
   for (int pass = 0; pass < 3; ++pass) {
     std::uint32_t sum = 0;
@@ -458,7 +466,30 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   }
   validateOptions(model, options);
   const int threads = batchThreadCount(options.threads, count);
-  const std::vector<std::uint32_t> order = spatialOrder(model, X_WM, points_W, count);
+  // As computeDistances (batch_query.cpp): an arena capped at `threads` slots, chunks stolen by idle threads;
+  // each task writes only its own outputs, so they do not depend on the schedule.
+  tbb::task_arena arena(threads);
+  int before = 0, after = 0;  // Addresses for the TSan annotations only.
+  auto inParallel = [&](std::size_t chunk, auto&& body) {
+    if (threads <= 1) {
+      body(std::size_t(0), count);
+      return;
+    }
+    tsanRelease(&before);
+    arena.execute([&] {
+      tbb::parallel_for(
+          tbb::blocked_range<std::size_t>(0, count, chunk),
+          [&](const tbb::blocked_range<std::size_t>& range) {
+            tsanAcquire(&before);
+            body(range.begin(), range.end());
+            tsanRelease(&after);
+          },
+          tbb::simple_partitioner());
+    });
+    tsanAcquire(&after);
+  };
+  const std::vector<std::uint32_t> order =
+      spatialOrder(model, X_WM, points_W, count, [&](auto&& body) { inParallel(4096, body); });
   const std::uint32_t* ordered = order.empty() ? nullptr : order.data();
   // Queries positions [begin, end) of the walk; each answer goes to its caller's index.
   auto queryRange = [&](std::size_t begin, std::size_t end) {
@@ -485,27 +516,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
       results[i] = pointDistance(model, X_WM, points_W[i], options);
     }
   };
-  if (threads <= 1) {
-    queryRange(0, count);
-    return;
-  }
-  // As computeDistances (batch_query.cpp): an arena capped at `threads` slots, chunks stolen by idle threads;
-  // each query writes only its own result, so the answers do not depend on the schedule.
-  const std::size_t chunk = std::clamp<std::size_t>(count / (8 * std::size_t(threads)), 1, 256);
-  int before = 0, after = 0;  // Addresses for the TSan annotations only.
-  tsanRelease(&before);
-  tbb::task_arena arena(threads);
-  arena.execute([&] {
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, count, chunk),
-        [&](const tbb::blocked_range<std::size_t>& range) {
-          tsanAcquire(&before);
-          queryRange(range.begin(), range.end());
-          tsanRelease(&after);
-        },
-        tbb::simple_partitioner());
-  });
-  tsanAcquire(&after);
+  inParallel(std::clamp<std::size_t>(count / (8 * std::size_t(threads)), 1, 256), queryRange);
 }
 
 }  // namespace cfl

@@ -16,9 +16,14 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <sstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace cfl {
 namespace {
@@ -35,11 +40,17 @@ inline void prefetch([[maybe_unused]] const void* address) {
   __builtin_prefetch(address);
 #endif
 }
+inline void prefetchForWrite([[maybe_unused]] const void* address) {
+#if defined(__GNUC__)
+  __builtin_prefetch(address, 1);
+#endif
+}
 
-// A batch queries points whose leaves are scattered over arrays of many megabytes (the rock's lists: 18 MB),
-// and each query's first reads form a chain of cache misses: leaf -> list index -> list offset -> the list's
-// ids and entry bounds. The batch walks that chain for the points a few places ahead, one link per stage,
-// with prefetches, so that a query finds them cached. It only reads the model: results do not change.
+// A batch too small to sort (spatialOrder) queries points in the caller's order, whose leaves may be
+// scattered over arrays of many megabytes (the rock's lists: 18 MB), and each query's first reads form a
+// chain of cache misses: leaf -> list index -> list offset -> the list's ids and entry bounds. The batch
+// walks that chain for the points a few places ahead, one link per stage, with prefetches, so that a query
+// finds them cached. It only reads the model: results do not change.
 class LeafPrefetcher {
  public:
   static constexpr std::ptrdiff_t kStep = 4;  // points between two stages of one point
@@ -104,6 +115,62 @@ class LeafPrefetcher {
   std::ptrdiff_t begin_ = 0;
   std::uint32_t ring_[kRing];
 };
+
+// The bits 0..9 of v spread to bits 0, 3, ..., 27.
+inline std::uint32_t spreadBits(std::uint32_t v) {
+  v &= 0x3ffu;
+  v = (v | v << 16) & 0x030000ffu;
+  v = (v | v << 8) & 0x0300f00fu;
+  v = (v | v << 4) & 0x030c30c3u;
+  v = (v | v << 2) & 0x09249249u;
+  return v;
+}
+
+// Callers' points come in any order, often random: consecutive queries then touch unrelated leaves, lists
+// and triangles, each a cache miss in arrays of many megabytes. Queried along a Morton curve (10 bits per
+// axis over the regions' box, where the lists are; points outside share its border cells), neighbours in
+// the walk are neighbours in space and mostly read what the previous query left in cache.
+// Returns the point indices in that order (an LSD radix sort, three passes of 10 bits: linear, stable, so
+// the order is deterministic), or nothing when the batch is too small or too large to index in 32 bits.
+// forEachBlock(body) calls body(begin, end) over blocks covering [0, count), on the batch's threads: the
+// keys, the part of the sort that costs arithmetic, are computed there.
+template <class ForEachBlock>
+std::vector<std::uint32_t> spatialOrder(const CflModel& model, const Eigen::Isometry3d& X_WM,
+                                        const Eigen::Vector3d* points_W, std::size_t count,
+                                        ForEachBlock&& forEachBlock) {
+  constexpr std::size_t kMinimum = 256;  // a few leaves' worth: little to share, and the histograms' fixed cost
+  if (count < kMinimum || count > std::size_t(std::numeric_limits<std::uint32_t>::max())) return {};
+  const Aabb box = model.regions.nodes.empty() ? model.geometry.bounds : model.regions.bounds();
+  const double extent = std::max(box.size().maxCoeff(), std::numeric_limits<double>::min());
+  const Eigen::Vector3d low = box.min;
+  const double scale = 1024 / extent;
+  const Eigen::Isometry3d X_MW = X_WM.inverse(Eigen::Isometry);
+  // (key << 32 | index): one 8-byte word per point moves in each pass.
+  std::vector<std::uint64_t> items(count), scratch(count);
+  forEachBlock([&](std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i != end; ++i) {
+      const Eigen::Vector3d q = (X_MW * points_W[i] - low) * scale;
+      std::uint32_t cell[3];
+      for (int axis = 0; axis < 3; ++axis) cell[axis] = std::uint32_t(std::clamp(q[axis], 0.0, 1023.0));
+      const std::uint32_t key = spreadBits(cell[0]) | spreadBits(cell[1]) << 1 | spreadBits(cell[2]) << 2;
+      items[i] = std::uint64_t(key) << 32 | i;
+    }
+  });
+  std::array<std::array<std::uint32_t, 1024>, 3> histogram{};
+  for (const std::uint64_t item : items) {
+    for (int pass = 0; pass < 3; ++pass) ++histogram[pass][(item >> (32 + 10 * pass)) & 0x3ffu];
+  }
+  for (int pass = 0; pass < 3; ++pass) {
+    std::uint32_t sum = 0;
+    for (std::uint32_t& bucket : histogram[pass]) sum += std::exchange(bucket, sum);
+    const int shift = 32 + 10 * pass;
+    for (const std::uint64_t item : items) scratch[histogram[pass][(item >> shift) & 0x3ffu]++] = item;
+    items.swap(scratch);
+  }
+  std::vector<std::uint32_t> order(count);
+  for (std::size_t i = 0; i < count; ++i) order[i] = std::uint32_t(items[i]);
+  return order;
+}
 
 // The Bvh walk: on the compact nodes when the model has them (makeMeshModel builds them; a MeshModel put
 // together by hand may not).
@@ -203,6 +270,31 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
   nearestTriangleFast(model.geometry, p_M, best_squared, best_triangle, &closest);
 }
 
+// searchNearest with a hint: `hint_squared` (or infinity), a bound that is likely to be a little above the
+// closest distance, e.g. from the answer for a point nearby (distance being 1-Lipschitz, no more than that
+// point's distance plus the step between them). Barely inflated, it bounds a first search, so that fewer
+// candidates pass the bounds; the first search finds what the plain one would (the same triangle, ties
+// included: either finds the first triangle of its list or walk at the least distance, and a bound above
+// that distance leaves that triangle in), unless nothing lies below the bound (rounding put it a hair
+// under the closest), and then the plain search runs.
+void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
+                       int& best_triangle, Eigen::Vector3d& closest) {
+  const double seed = hint_squared * (1 + 1e-9);
+  if (seed > 0 && seed < best_squared) {
+    double found_squared = seed;
+    int found = -1;
+    Eigen::Vector3d q;
+    searchNearest(model, p_M, found_squared, found, q);
+    if (found >= 0) {
+      best_squared = found_squared;
+      best_triangle = found;
+      closest = q;
+      return;
+    }
+  }
+  searchNearest(model, p_M, best_squared, best_triangle, closest);
+}
+
 // Which feature of triangle (a, b, c) holds the point closest to p: 0 the face, 1 + e edge e (corners e and
 // e + 1 mod 3), 4 + k vertex k. The Voronoi-region tests of Ericson (Real-Time Collision Detection, 5.1.5):
 // p's region decides, so the feature is the one that holds the closest point, as the pseudonormal theorem
@@ -287,15 +379,17 @@ void validatePoint(const Eigen::Vector3d& p_W, const char* what) {
   }
 }
 
-// The query proper, once pose, point and options are known to be good.
+// The query proper, once pose, point and options are known to be good. `hint_squared`: see
+// searchNearestFrom.
 PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p_W,
-                            const PointQueryOptions& options) {
+                            const PointQueryOptions& options,
+                            double hint_squared = std::numeric_limits<double>::infinity()) {
   const Eigen::Vector3d p_M = X_WM.inverse(Eigen::Isometry) * p_W;
   const double infinity = std::numeric_limits<double>::infinity();
   double best_squared = std::isinf(options.upper_bound) ? infinity : options.upper_bound * options.upper_bound;
   int triangle = -1;
   Eigen::Vector3d closest_M = Eigen::Vector3d::Zero();
-  searchNearest(model, p_M, best_squared, triangle, closest_M);
+  searchNearestFrom(model, hint_squared, p_M, best_squared, triangle, closest_M);
   double distance = triangle >= 0 ? std::sqrt(best_squared) : infinity;
   if (triangle >= 0 && !(distance < options.upper_bound)) triangle = -1, distance = infinity;  // rounding at the bound
 
@@ -377,37 +471,67 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   }
   validateOptions(model, options);
   const int threads = batchThreadCount(options.threads, count);
-  auto query = [&](std::size_t i) { results[i] = pointDistance(model, X_WM, points_W[i], options); };
-  // Queries [begin, end) in order, with the leaf data of the points ahead prefetched.
+  // As computeDistances (batch_query.cpp): an arena capped at `threads` slots, chunks stolen by idle threads;
+  // each task writes only its own outputs, so they do not depend on the schedule.
+  tbb::task_arena arena(threads);
+  int before = 0, after = 0;  // Addresses for the TSan annotations only.
+  auto inParallel = [&](std::size_t chunk, auto&& body) {
+    if (threads <= 1) {
+      body(std::size_t(0), count);
+      return;
+    }
+    tsanRelease(&before);
+    arena.execute([&] {
+      tbb::parallel_for(
+          tbb::blocked_range<std::size_t>(0, count, chunk),
+          [&](const tbb::blocked_range<std::size_t>& range) {
+            tsanAcquire(&before);
+            body(range.begin(), range.end());
+            tsanRelease(&after);
+          },
+          tbb::simple_partitioner());
+    });
+    tsanAcquire(&after);
+  };
+  const std::vector<std::uint32_t> order =
+      spatialOrder(model, X_WM, points_W, count, [&](auto&& body) { inParallel(4096, body); });
+  const std::uint32_t* ordered = order.empty() ? nullptr : order.data();
+  // Queries positions [begin, end) of the walk; each answer goes to its caller's index.
   auto queryRange = [&](std::size_t begin, std::size_t end) {
+    if (ordered) {
+      // Along the curve the previous point is close by: its distance plus the step, distance being
+      // 1-Lipschitz, hints at this one's (a hint never changes an answer, see searchNearestFrom). The
+      // leaves and lists are those of the previous queries, mostly cached: no prefetcher.
+      double previous = std::numeric_limits<double>::infinity();
+      Eigen::Vector3d previous_W = Eigen::Vector3d::Zero();
+      // The caller's arrays are read and written out of order: each point and result its own cache miss,
+      // fetched ahead.
+      constexpr std::size_t kAhead = 8;  // queries ahead: several hundred cycles, time for a miss to land
+      for (std::size_t j = begin; j != end; ++j) {
+        if (j + kAhead < end) {
+          const std::size_t ahead = ordered[j + kAhead];
+          prefetch(&points_W[ahead]);
+          prefetch(reinterpret_cast<const char*>(&points_W[ahead] + 1) - 1);
+          prefetchForWrite(&results[ahead]);
+          prefetchForWrite(reinterpret_cast<const char*>(&results[ahead] + 1) - 1);
+        }
+        const std::size_t i = ordered[j];
+        const double hint = previous + (points_W[i] - previous_W).norm();
+        results[i] = pointDistance(model, X_WM, points_W[i], options, hint * hint);
+        previous = std::abs(results[i].distance);
+        previous_W = points_W[i];
+      }
+      return;
+    }
+    // In the caller's order, with the leaf data of the points ahead prefetched.
     LeafPrefetcher prefetcher(model, X_WM, points_W);
     prefetcher.start(std::ptrdiff_t(begin), std::ptrdiff_t(end));
     for (std::size_t i = begin; i != end; ++i) {
       prefetcher.advance(std::ptrdiff_t(i), std::ptrdiff_t(end));
-      query(i);
+      results[i] = pointDistance(model, X_WM, points_W[i], options);
     }
   };
-  if (threads <= 1) {
-    queryRange(0, count);
-    return;
-  }
-  // As computeDistances (batch_query.cpp): an arena capped at `threads` slots, chunks stolen by idle threads;
-  // each query writes only its own result, so the answers do not depend on the schedule.
-  const std::size_t chunk = std::clamp<std::size_t>(count / (8 * std::size_t(threads)), 1, 256);
-  int before = 0, after = 0;  // Addresses for the TSan annotations only.
-  tsanRelease(&before);
-  tbb::task_arena arena(threads);
-  arena.execute([&] {
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, count, chunk),
-        [&](const tbb::blocked_range<std::size_t>& range) {
-          tsanAcquire(&before);
-          queryRange(range.begin(), range.end());
-          tsanRelease(&after);
-        },
-        tbb::simple_partitioner());
-  });
-  tsanAcquire(&after);
+  inParallel(std::clamp<std::size_t>(count / (8 * std::size_t(threads)), 1, 256), queryRange);
 }
 
 }  // namespace cfl

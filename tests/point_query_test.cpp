@@ -288,9 +288,12 @@ TEST(PointQuery, BatchEqualsSerialBitForBit) {
   const Eigen::Isometry3d X_WM = test::randomPose(rng, 2.0);
   std::vector<Eigen::Vector3d> points;
   for (const Eigen::Vector3d& p_M : samplePoints(model, 3000, rng)) points.push_back(X_WM * p_M);
-  for (bool signed_distance : {false, true}) {
+  // The batch queries in its own (spatial) order, each point warm-started from the one before; with an upper
+  // bound too, some points find nothing.
+  for (int variant = 0; variant < 4; ++variant) {
     PointQueryOptions options;
-    options.signed_distance = signed_distance;
+    options.signed_distance = variant % 2 == 1;
+    if (variant >= 2) options.upper_bound = 0.2;
     std::vector<PointDistance> serial;
     for (const auto& p : points) serial.push_back(computePointDistance(model, X_WM, p, options));
     for (int threads : {1, 2}) {
@@ -303,6 +306,29 @@ TEST(PointQuery, BatchEqualsSerialBitForBit) {
         ASSERT_EQ(batch[i].closest_point, serial[i].closest_point) << i;
         ASSERT_EQ(batch[i].gradient, serial[i].gradient) << i;
       }
+    }
+  }
+}
+
+// A grid about a cube: many points at equal distance from several faces, edges or corners (ties, which the
+// batch's warm starts must break as the serial calls do).
+TEST(PointQuery, BatchBreaksTiesAsSerial) {
+  const CflModel model = buildCflModel(unitCube());
+  std::vector<Eigen::Vector3d> points;
+  for (int i = 0; i < 16; ++i)
+    for (int j = 0; j < 16; ++j)
+      for (int k = 0; k < 16; ++k) points.push_back(Eigen::Vector3d(i, j, k) * 0.125 - Eigen::Vector3d::Constant(0.4375));
+  for (bool signed_distance : {false, true}) {
+    PointQueryOptions options;
+    options.signed_distance = signed_distance;
+    std::vector<PointDistance> batch(points.size());
+    computePointDistances(model, Eigen::Isometry3d::Identity(), points.data(), points.size(), batch.data(), options);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const PointDistance serial = computePointDistance(model, Eigen::Isometry3d::Identity(), points[i], options);
+      ASSERT_EQ(batch[i].distance, serial.distance) << i;
+      ASSERT_EQ(batch[i].triangle, serial.triangle) << i;
+      ASSERT_EQ(batch[i].closest_point, serial.closest_point) << i;
+      ASSERT_EQ(batch[i].gradient, serial.gradient) << i;
     }
   }
 }

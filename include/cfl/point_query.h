@@ -58,7 +58,10 @@ PointDistance computePointDistance(const CflModel& model, const Eigen::Isometry3
 
 /// results[i] = computePointDistance(model, X_WM, points_W[i], options) for i in [0, count), on
 /// options.threads threads (oneTBB), bit-identical to the serial calls. Every point is checked first; a bad
-/// one throws cfl::Error naming its index and leaves `results` untouched.
+/// one throws cfl::Error naming its index and leaves `results` untouched. The points are queried in spatial
+/// (Morton) order rather than the caller's, so that neighbouring queries share cached leaves and triangles:
+/// a batch of 256 points or more allocates that order once (20 bytes per point while it is sorted, 4 while
+/// the queries run), in O(count) time; the results still go to the caller's indices.
 void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d* points_W,
                            std::size_t count, PointDistance* results, const PointQueryOptions& options = {});
 

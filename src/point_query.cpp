@@ -8,12 +8,7 @@
 #include "cfl/triangle_distance.h"
 #include "detail/exact_arithmetic.h"
 #include "detail/nearest_triangle.h"
-#include "detail/tsan_annotations.h"
-
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/partitioner.h>
-#include <tbb/task_arena.h>
+#include "detail/parallel_chunks.h"
 
 #include <algorithm>
 #include <array>
@@ -27,9 +22,6 @@
 
 namespace cfl {
 namespace {
-
-using detail::tsanAcquire;
-using detail::tsanRelease;
 
 // The list scan compares lower bounds with the best distance so far; both went through a rounding or two, so
 // a bound is shrunk by far more than their error before it may end the scan.
@@ -471,28 +463,9 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   }
   validateOptions(model, options);
   const int threads = batchThreadCount(options.threads, count);
-  // As computeDistances (batch_query.cpp): an arena capped at `threads` slots, chunks stolen by idle threads;
-  // each task writes only its own outputs, so they do not depend on the schedule.
-  tbb::task_arena arena(threads);
-  int before = 0, after = 0;  // Addresses for the TSan annotations only.
-  auto inParallel = [&](std::size_t chunk, auto&& body) {
-    if (threads <= 1) {
-      body(std::size_t(0), count);
-      return;
-    }
-    tsanRelease(&before);
-    arena.execute([&] {
-      tbb::parallel_for(
-          tbb::blocked_range<std::size_t>(0, count, chunk),
-          [&](const tbb::blocked_range<std::size_t>& range) {
-            tsanAcquire(&before);
-            body(range.begin(), range.end());
-            tsanRelease(&after);
-          },
-          tbb::simple_partitioner());
-    });
-    tsanAcquire(&after);
-  };
+  // detail::parallelChunks, as computeDistances: each task writes only its own outputs, so they do not depend
+  // on the schedule.
+  auto inParallel = [&](std::size_t chunk, auto&& body) { detail::parallelChunks(count, threads, chunk, body); };
   const std::vector<std::uint32_t> order =
       spatialOrder(model, X_WM, points_W, count, [&](auto&& body) { inParallel(4096, body); });
   const std::uint32_t* ordered = order.empty() ? nullptr : order.data();

@@ -1,8 +1,9 @@
 #pragma once
 // Internal: ThreadSanitizer does not see the synchronization inside libtbb.so (not instrumented), so without
 // help it takes a caller's writes before a parallel batch and its reads after it as racing with the chunks.
-// The batches (batch_query.cpp, point_query.cpp) state the order TBB guarantees with these: parallel_for starts
-// every chunk after the call and returns after every chunk. They compile to nothing outside TSan builds.
+// detail::parallelChunks (parallel_chunks.h), the batches' loop, states with these the order TBB guarantees:
+// parallel_for starts every chunk after the call and returns after every chunk. They compile to nothing outside
+// TSan builds.
 
 #if defined(__has_feature)
 #if __has_feature(thread_sanitizer)

@@ -134,6 +134,10 @@ BoxDistance computeBoxDistance(const CflModel& model, const Eigen::Isometry3d& X
     const BvhNode& node = nodes[pending.node];
     if (node.isLeaf()) {
       for (int i = node.first; i < node.first + node.count; ++i) {
+        // A leaf holds several triangles: each is first bounded by its own sphere against the box.
+        const Eigen::Vector3d center_B = X_BM * mesh.leaf_spheres[i].head<3>();
+        const double reach = std::sqrt(pointBoxSquaredDistance(center_B, half, nullptr)) - mesh.leaf_spheres[i].w();
+        if (reach > 0 && reach * reach >= best.squared) continue;
         const auto& c = mesh.leaf_corners[i];
         const Eigen::Vector3d t[3] = {X_BM * c[0], X_BM * c[1], X_BM * c[2]};
         const Eigen::Vector4d& p = mesh.leaf_planes[i];
@@ -142,7 +146,7 @@ BoxDistance computeBoxDistance(const CflModel& model, const Eigen::Isometry3d& X
         plane_S.w() = plane_S.head<3>().dot(t[0]);
         if (p.head<3>().squaredNorm() == 0) plane_S.setZero();
         Eigen::Vector4d sphere_S;
-        sphere_S.head<3>() = X_BM * mesh.leaf_spheres[i].head<3>();
+        sphere_S.head<3>() = center_B;
         sphere_S.w() = mesh.leaf_spheres[i].w();
         testTriangle(t, plane_S, sphere_S, half, corners, mesh.bvh.triangle_ids[i], best);
       }

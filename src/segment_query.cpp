@@ -130,6 +130,10 @@ Closest closestTriangle(const CflModel& model, const Eigen::Vector3d& a, const E
     const BvhNode& node = nodes[pending.node];
     if (node.isLeaf()) {
       for (int i = node.first; i < node.first + node.count; ++i) {
+        // A leaf holds several triangles: each is first bounded by its own sphere.
+        const Eigen::Vector4d& sphere = mesh.leaf_spheres[i];
+        const double reach = std::sqrt(pointSegmentSquaredDistance(sphere.head<3>(), a, ab, ab_squared)) - sphere[3];
+        if (reach > 0 && reach * reach >= best.squared) continue;
         // Both ends on one side of the triangle's plane: the nearer end's plane distance bounds the distance.
         const Eigen::Vector4d& plane = mesh.leaf_planes[i];
         const double s0 = plane.head<3>().dot(a) - plane.w(), s1 = plane.head<3>().dot(b) - plane.w();

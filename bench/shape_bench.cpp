@@ -21,6 +21,7 @@
 #include "cfl_fcl/cfl_geometry.h"
 #include "libfcl_distance.h"
 #include "measure.h"
+#include "pose_generator.h"
 
 #include <fcl/fcl.h>
 
@@ -75,34 +76,16 @@ Mesh loadScene(const std::string& dir, const std::string& file) {
 }
 
 // A pose of the shape at distance `target` from the mesh (exact: the adapter's answer, which the
-// identical-results check then compares with FCL's): random rotation, along a random ray from far outside
-// towards the mesh's center, the first crossing of `target` found by marching in, then bisection.
+// identical-results check then compares with FCL's), along a random ray (bench::placeShapeOnRay).
 Transform placeShape(const Mesh& m, const std::shared_ptr<fcl::CollisionGeometryd>& shape, double target,
                      std::mt19937_64& rng) {
-  std::normal_distribution<double> normal;
-  const Eigen::Vector3d direction = Eigen::Vector3d(normal(rng), normal(rng), normal(rng)).normalized();
-  Eigen::Quaterniond q(normal(rng), normal(rng), normal(rng), normal(rng));
-  Transform tf = Transform::Identity();
-  tf.linear() = q.normalized().toRotationMatrix();
   fcl::CollisionObjectd mesh_object(m.cfl, Transform::Identity());
-  auto distanceAt = [&](double t) {
-    tf.translation() = m.center + t * direction;
-    fcl::CollisionObjectd shape_object(shape, tf);
+  return cfl::bench::placeShapeOnRay(m.center, m.diagonal, target, rng, [&](const Eigen::Isometry3d& X) {
+    fcl::CollisionObjectd shape_object(shape, X);
     fcl::DistanceRequestd request;
     fcl::DistanceResultd result;
     return fcl::distance(&shape_object, &mesh_object, request, result);
-  };
-  double hi = m.diagonal, lo = hi;
-  const double step = 0.02 * m.diagonal;
-  while (lo > 0 && distanceAt(lo) > target) lo -= step;
-  lo = std::max(lo, 0.0);
-  if (hi - lo < step) lo = hi - step;
-  for (int i = 0; i < 60; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (distanceAt(mid) > target ? hi : lo) = mid;
-  }
-  tf.translation() = m.center + hi * direction;
-  return tf;
+  });
 }
 
 double median(std::vector<double> v) {

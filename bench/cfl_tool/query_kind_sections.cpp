@@ -59,33 +59,6 @@ double cflShapeDistance(const CflModel& a, const Shape& shape, const Eigen::Isom
   return NAN;
 }
 
-// A pose of the shape at distance `target` from A: a random rotation, on a random ray from A's center
-// outwards, the outermost crossing of `target` found by marching in from one diagonal out, then bisection
-// on CFL's exact distance (checked against FCL's afterwards).
-Eigen::Isometry3d placeShape(const CflModel& a, const Shape& shape, double target, std::mt19937_64& rng) {
-  std::normal_distribution<double> normal;
-  const double diagonal = a.geometry.bounds.diagonal();
-  const Eigen::Vector3d center = a.geometry.bounds.center();
-  const Eigen::Vector3d direction = Eigen::Vector3d(normal(rng), normal(rng), normal(rng)).normalized();
-  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
-  X.linear() = Eigen::Quaterniond(normal(rng), normal(rng), normal(rng), normal(rng)).normalized().toRotationMatrix();
-  auto distanceAt = [&](double t) {
-    X.translation() = center + t * direction;
-    return cflShapeDistance(a, shape, X);
-  };
-  double hi = diagonal, lo = hi;
-  const double step = 0.02 * diagonal;
-  while (lo > 0 && distanceAt(lo) > target) lo -= step;
-  lo = std::max(lo, 0.0);
-  if (hi - lo < step) lo = hi - step;
-  for (int i = 0; i < 60; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (distanceAt(mid) > target ? hi : lo) = mid;
-  }
-  X.translation() = center + hi * direction;
-  return X;
-}
-
 }  // namespace
 
 bool runPointSection(const SectionContext& c, int count, std::uint64_t seed, std::ostream& out) {
@@ -171,7 +144,8 @@ bool runShapeSection(const SectionContext& c, const std::vector<double>& bands, 
     for (const double band : bands) {
       if (!(band > 0)) continue;  // touching or overlapping shapes have no distance to compare
       std::vector<Eigen::Isometry3d> placed;
-      for (int i = 0; i < poses; ++i) placed.push_back(placeShape(a, shape, band * d, rng));
+      for (int i = 0; i < poses; ++i) placed.push_back(bench::placeShapeOnRay(a.geometry.bounds.center(), d, band * d, rng,
+                                                [&](const Eigen::Isometry3d& X) { return cflShapeDistance(a, shape, X); }));
       const std::vector<TimedMethod> methods = {
           {"fcl", [&](const Eigen::Isometry3d& X) { return bench::fclShapeDistance(shape.fcl, X, c.obbrss_a, kIdentity); }},
           {"cfl", [&](const Eigen::Isometry3d& X) { return cflShapeDistance(a, shape, X); }}};

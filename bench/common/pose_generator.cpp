@@ -217,4 +217,27 @@ double median(std::vector<double> values) {
   return n % 2 == 1 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
 }
 
+Eigen::Isometry3d placeShapeOnRay(const Eigen::Vector3d& center, double diagonal, double target,
+                                  std::mt19937_64& rng, const DistanceFunction& distance) {
+  std::normal_distribution<double> normal;
+  const Eigen::Vector3d direction = Eigen::Vector3d(normal(rng), normal(rng), normal(rng)).normalized();
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.linear() = Eigen::Quaterniond(normal(rng), normal(rng), normal(rng), normal(rng)).normalized().toRotationMatrix();
+  auto distanceAt = [&](double t) {
+    X.translation() = center + t * direction;
+    return distance(X);
+  };
+  double hi = diagonal, lo = hi;
+  const double step = 0.02 * diagonal;
+  while (lo > 0 && distanceAt(lo) > target) lo -= step;
+  lo = std::max(lo, 0.0);
+  if (hi - lo < step) lo = hi - step;
+  for (int i = 0; i < 60; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (distanceAt(mid) > target ? hi : lo) = mid;
+  }
+  X.translation() = center + hi * direction;
+  return X;
+}
+
 }  // namespace cfl::bench

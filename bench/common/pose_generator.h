@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <random>
 #include <vector>
 
 namespace cfl::bench {
@@ -19,6 +20,14 @@ using DistanceFunction = std::function<double(const Eigen::Isometry3d& X_WB)>;
 
 /// Separation bands as fractions of A's bounding-box diagonal, the default of `cfl bench`:
 /// 0 (overlapping), 0.5%, 2%, 10%, 50%.
+/// A pose of a shape at distance `target` from a mesh whose bounding box has center `center` and diagonal
+/// `diagonal`, for the shape benchmarks: a uniformly random rotation and a random ray from the center
+/// outwards (both drawn from `rng`, in that order), the outermost crossing of `target` along the ray found by
+/// marching in from one diagonal out in steps of 2% of it, then 60 bisection steps. `distance(X)` is the
+/// shape's distance to the mesh at pose X (mesh frame = world).
+Eigen::Isometry3d placeShapeOnRay(const Eigen::Vector3d& center, double diagonal, double target,
+                                  std::mt19937_64& rng, const DistanceFunction& distance);
+
 std::vector<double> defaultBands();
 
 /// Poses of B for one band.

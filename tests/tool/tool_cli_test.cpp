@@ -357,8 +357,11 @@ TEST_F(ToolCliTest, BenchMovingAloneReportsColdWarmCachedAndObbrssOverTheRequest
   const ToolRun r = run({"bench", mesh, "--no-table", "--moving", "20", "--queries", "2", "--repeats", "1",
                          "--resolution", "10"});
   ASSERT_EQ(r.status, 0) << r.err << r.out;
-  // --no-table: no per-band table header, yet the header lines stay.
+  // --no-table: no per-band table header and no per-band pose count (nothing here times per band), yet the
+  // header lines stay.
   EXPECT_FALSE(contains(r.out, "CFL med")) << r.out;
+  EXPECT_FALSE(contains(r.out, "poses per band")) << r.out;
+  EXPECT_TRUE(contains(r.out, "CFL's query kernels: ")) << r.out;
   EXPECT_TRUE(contains(r.out, "cfl bench: A = " + mesh)) << r.out;
   const std::string section = lineStartingWith(r.out, "moving objects:");
   ASSERT_FALSE(section.empty()) << r.out;
@@ -409,6 +412,7 @@ TEST_F(ToolCliTest, BenchApproximateSectionHoldsEveryBandWithinRelErr) {
                          "--bands", "0,0.02,0.3", "--repeats", "1", "--resolution", "10"});
   ASSERT_EQ(r.status, 0) << r.err << r.out;
   EXPECT_FALSE(contains(r.out, "CFL med")) << r.out;
+  EXPECT_TRUE(contains(r.out, "queries: 2 poses per band")) << r.out;
   const std::string section = lineStartingWith(r.out, "approximate queries:");
   ASSERT_FALSE(section.empty()) << r.out;
   EXPECT_TRUE(contains(section, "rel_err 0.1, abs_err 1 ")) << section;

@@ -135,19 +135,23 @@ double separatingGap(const Eigen::Vector3d t[3], const Eigen::Vector3d& n, const
 // edge or a face is matched by one of these at the same distance), each tested only where its bounds can
 // beat the best. Intersecting (every separating gap <= 0), testTriangle finds the common point.
 void testTriangleApart(const Eigen::Vector3d t[3], const Eigen::Vector4d& plane_S, const Eigen::Vector4d& sphere_S,
-                       const Eigen::Vector3d& half, const Eigen::Vector3d corners[8], int id, Best& best) {
+                       const Eigen::Vector3d& half, const Eigen::Vector3d corners[8], bool apart, int id,
+                       Best& best) {
   Eigen::Vector3d on_box;
   for (int k = 0; k < 3; ++k) {
     const double d = pointBoxSquaredDistance(t[k], half, &on_box);
     if (d < best.squared) best = {d, on_box, t[k], id};
   }
   const Eigen::Vector3d n = (t[1] - t[0]).cross(t[2] - t[0]);
-  const double gap = separatingGap(t, n, half) * kGapShrink;
-  if (!(gap > 0)) {
-    testTriangle(t, plane_S, sphere_S, half, corners, id, best);
-    return;
+  // Apart along the box's axes or the plane's normal already: the other axes would only tighten a bound.
+  if (!apart) {
+    const double gap = separatingGap(t, n, half) * kGapShrink;
+    if (!(gap > 0)) {
+      testTriangle(t, plane_S, sphere_S, half, corners, id, best);
+      return;
+    }
+    if (gap * gap >= best.squared) return;
   }
-  if (gap * gap >= best.squared) return;
   // A closest pair's box point p and triangle point q have q - p in the box's normal cone at p, and p - q in
   // the triangle's at q. So a box corner counts only if the triangle reaches past it along all three axes,
   // a box edge only if the triangle reaches past both faces that meet there, and a triangle edge only if
@@ -214,7 +218,8 @@ inline void considerTriangle(const BoxFrame& box, const std::array<Eigen::Vector
   const Eigen::Vector3d t[3] = {box.X_BM * c[0], box.X_BM * c[1], box.X_BM * c[2]};
   // The triangle's box against the box, before anything that costs more.
   const Eigen::Vector3d lo = t[0].cwiseMin(t[1]).cwiseMin(t[2]), hi = t[0].cwiseMax(t[1]).cwiseMax(t[2]);
-  if ((lo - box.half).cwiseMax(-box.half - hi).cwiseMax(0.0).squaredNorm() * kGapShrink >= best.squared) return;
+  const double box_gap = (lo - box.half).cwiseMax(-box.half - hi).cwiseMax(0.0).squaredNorm() * kGapShrink;
+  if (box_gap >= best.squared) return;
   Eigen::Vector4d plane_S;
   plane_S.head<3>() = box.X_BM.linear() * plane.head<3>();
   plane_S.w() = plane_S.head<3>().dot(t[0]);
@@ -224,7 +229,7 @@ inline void considerTriangle(const BoxFrame& box, const std::array<Eigen::Vector
   Eigen::Vector4d sphere_S;
   sphere_S.head<3>() = center_B;
   sphere_S.w() = sphere.w();
-  testTriangleApart(t, plane_S, sphere_S, box.half, box.corners, id, best);
+  testTriangleApart(t, plane_S, sphere_S, box.half, box.corners, box_gap > 0 || plane_gap > 0, id, best);
 }
 
 // The exact search over the whole mesh through its Bvh, below best.squared.

@@ -184,19 +184,22 @@ void testTriangleApart(const Eigen::Vector3d t[3], const Eigen::Vector4d& plane_
       edge_counts[k] = reach >= -slack * outward.cwiseAbs().sum();
     }
   }
-  for (const auto& e : kEdges) {
-    // The edge runs along the axis where its corners differ; it needs the triangle past both other faces.
-    const int along = (e[0] ^ e[1]) == 1 ? 0 : ((e[0] ^ e[1]) == 2 ? 1 : 2);
+  // The four box edges along each axis; each needs the triangle past both faces that meet there, and within
+  // the box's extent along the edge.
+  for (int along = 0; along < 3; ++along) {
+    if (lo[along] > half[along] + slack || hi[along] < -half[along] - slack) continue;
     const int i = (along + 1) % 3, j = (along + 2) % 3;
     const int need = 1 << i | 1 << j;
-    if ((past(e[0]) & need) != need) continue;
-    if (lo[along] > half[along] + slack || hi[along] < -half[along] - slack) continue;
-    for (int k = 0; k < 3; ++k) {
-      if (!edge_counts[k]) continue;
-      Eigen::Vector3d on_edge, on_triangle;
-      const double d =
-          segmentSegmentSquaredDistance(corners[e[0]], corners[e[1]], t[k], t[(k + 1) % 3], &on_edge, &on_triangle);
-      if (d < best.squared) best = {d, on_edge, on_triangle, id};
+    for (int m = 0; m < 4; ++m) {
+      const int c0 = (m & 1) << i | (m >> 1) << j, c1 = c0 | 1 << along;
+      if ((past(c0) & need) != need) continue;
+      for (int k = 0; k < 3; ++k) {
+        if (!edge_counts[k]) continue;
+        Eigen::Vector3d on_edge, on_triangle;
+        const double d =
+            segmentSegmentSquaredDistance(corners[c0], corners[c1], t[k], t[(k + 1) % 3], &on_edge, &on_triangle);
+        if (d < best.squared) best = {d, on_edge, on_triangle, id};
+      }
     }
   }
 }

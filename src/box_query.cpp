@@ -5,8 +5,10 @@
 #include "cfl/cfl_query.h"
 #include "cfl/error.h"
 #include "cfl/segment_query.h"
+#include "cfl/triangle_distance.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <sstream>
 
@@ -40,6 +42,10 @@ bool segmentMeetsBox(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const
   return true;
 }
 
+// The gaps below are computed from coordinates in the box frame, each within a few roundings of its true
+// value; shrunk by far more than that, they stay below the distance they bound.
+constexpr double kGapShrink = 1 - 1e-9;
+
 struct Best {
   double squared;
   Eigen::Vector3d on_box = Eigen::Vector3d::Zero(), on_triangle = Eigen::Vector3d::Zero();
@@ -68,10 +74,14 @@ void testTriangle(const Eigen::Vector3d t[3], const Eigen::Vector4d& plane_S, co
   // end's height away.
   double height[8];
   for (int c = 0; c < 8; ++c) height[c] = n.dot(corners[c]) - plane_S.w();
+  const Eigen::Vector3d t_min = t[0].cwiseMin(t[1]).cwiseMin(t[2]), t_max = t[0].cwiseMax(t[1]).cwiseMax(t[2]);
   for (const auto& e : kEdges) {
     const double h0 = height[e[0]], h1 = height[e[1]];
     const double gap = h0 > 0 && h1 > 0 ? std::min(h0, h1) : (h0 < 0 && h1 < 0 ? -std::max(h0, h1) : 0.0);
     if (gap * gap >= best.squared) continue;
+    // The edge's own box (it is axis-aligned) against the triangle's.
+    const Eigen::Vector3d e_min = corners[e[0]].cwiseMin(corners[e[1]]), e_max = corners[e[0]].cwiseMax(corners[e[1]]);
+    if ((e_min - t_max).cwiseMax(t_min - e_max).cwiseMax(0.0).squaredNorm() >= best.squared) continue;
     // The triangle's bounding sphere: the edge is no closer than its distance to the center minus the radius.
     const Eigen::Vector3d& a = corners[e[0]];
     const Eigen::Vector3d ab = corners[e[1]] - a;
@@ -93,30 +103,146 @@ void testTriangle(const Eigen::Vector3d t[3], const Eigen::Vector4d& plane_S, co
   }
 }
 
-}  // namespace
-
-BoxDistance computeBoxDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Isometry3d& X_WB,
-                               const Eigen::Vector3d& half, double upper_bound) {
-  validatePose(X_WM, "X_WM");
-  validatePose(X_WB, "X_WB");
-  if (!half.allFinite() || !(half.minCoeff() > 0)) {
-    std::ostringstream message;
-    message << "computeBoxDistance: half extents must be finite and > 0, got " << half.transpose();
-    throw Error(message.str());
+// The separating-axis gap between the box [-half, half] and triangle t (box frame) along the box's axes,
+// the triangle's normal n and the nine box-axis x triangle-edge directions: a lower bound on their distance,
+// and <= 0 along all of them exactly when they intersect (up to rounding).
+double separatingGap(const Eigen::Vector3d t[3], const Eigen::Vector3d& n, const Eigen::Vector3d& half) {
+  const Eigen::Vector3d lo = t[0].cwiseMin(t[1]).cwiseMin(t[2]), hi = t[0].cwiseMax(t[1]).cwiseMax(t[2]);
+  double bound = std::sqrt((lo - half).cwiseMax(-half - hi).cwiseMax(0.0).squaredNorm());
+  double any = bound;
+  auto axisGap = [&](const Eigen::Vector3d& axis) {
+    const double p0 = axis.dot(t[0]), p1 = axis.dot(t[1]), p2 = axis.dot(t[2]);
+    const double radius = axis.cwiseAbs().dot(half);
+    const double gap = std::max(std::min({p0, p1, p2}) - radius, -std::max({p0, p1, p2}) - radius);
+    if (!(gap > 0)) return;
+    any = 1;
+    const double length_squared = axis.squaredNorm();
+    if (!(gap * gap > bound * bound * length_squared)) return;
+    bound = gap / std::sqrt(length_squared);
+  };
+  if (n.squaredNorm() > 0) axisGap(n);
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d edge = t[(k + 1) % 3] - t[k];
+    axisGap(Eigen::Vector3d(0, -edge.z(), edge.y()));
+    axisGap(Eigen::Vector3d(edge.z(), 0, -edge.x()));
+    axisGap(Eigen::Vector3d(-edge.y(), edge.x(), 0));
   }
-  if (!(upper_bound >= 0)) throw Error("computeBoxDistance: upper_bound must be >= 0");
-  const MeshModel& mesh = model.geometry;
-  const Eigen::Isometry3d X_BM = X_WB.inverse() * X_WM;
-  Eigen::Vector3d corners[8];
-  for (int c = 0; c < 8; ++c)
-    corners[c] = Eigen::Vector3d(c & 1 ? half.x() : -half.x(), c & 2 ? half.y() : -half.y(), c & 4 ? half.z() : -half.z());
-  Best best{upper_bound * upper_bound};
+  return any > 0 ? bound : 0.0;
+}
+
+// testTriangle, faster where the box and triangle are apart: then a closest pair is a triangle corner and
+// the box, a box corner and the triangle, or a box edge and a triangle edge (a face's interior against an
+// edge or a face is matched by one of these at the same distance), each tested only where its bounds can
+// beat the best. Intersecting (every separating gap <= 0), testTriangle finds the common point.
+void testTriangleApart(const Eigen::Vector3d t[3], const Eigen::Vector4d& plane_S, const Eigen::Vector4d& sphere_S,
+                       const Eigen::Vector3d& half, const Eigen::Vector3d corners[8], bool apart, int id,
+                       Best& best) {
+  Eigen::Vector3d on_box;
+  for (int k = 0; k < 3; ++k) {
+    const double d = pointBoxSquaredDistance(t[k], half, &on_box);
+    if (d < best.squared) best = {d, on_box, t[k], id};
+  }
+  const Eigen::Vector3d n = (t[1] - t[0]).cross(t[2] - t[0]);
+  // Apart along the box's axes or the plane's normal already: the other axes would only tighten a bound.
+  if (!apart) {
+    const double gap = separatingGap(t, n, half) * kGapShrink;
+    if (!(gap > 0)) {
+      testTriangle(t, plane_S, sphere_S, half, corners, id, best);
+      return;
+    }
+    if (gap * gap >= best.squared) return;
+  }
+  // A closest pair's box point p and triangle point q have q - p in the box's normal cone at p, and p - q in
+  // the triangle's at q. So a box corner counts only if the triangle reaches past it along all three axes,
+  // a box edge only if the triangle reaches past both faces that meet there, and a triangle edge only if
+  // the box reaches past the edge's line, away from the triangle. (A corner within rounding of such a
+  // border counts.)
+  const Eigen::Vector3d lo = t[0].cwiseMin(t[1]).cwiseMin(t[2]), hi = t[0].cwiseMax(t[1]).cwiseMax(t[2]);
+  const double slack = 1e-12 * (hi.cwiseAbs().maxCoeff() + lo.cwiseAbs().maxCoeff() + half.maxCoeff());
+  int beyond_low = 0, beyond_high = 0;  // bit k: the triangle reaches below -half_k, above +half_k
+  for (int k = 0; k < 3; ++k) {
+    if (lo[k] <= -half[k] + slack) beyond_low |= 1 << k;
+    if (hi[k] >= half[k] - slack) beyond_high |= 1 << k;
+  }
+  // Bit k of `past(c)`: the triangle reaches past corner c (bit k of c set for +half_k) along axis k.
+  auto past = [&](int c) { return (c & beyond_high) | (~c & beyond_low); };
+  for (int c = 0; c < 8; ++c) {
+    if (past(c) != 7) continue;
+    Eigen::Vector3d q;
+    const double d = pointTriangleSquaredDistance(corners[c], t[0], t[1], t[2], &q);
+    if (d < best.squared) best = {d, corners[c], q, id};
+  }
+  // Triangle edges the box reaches past (all of them for a degenerate triangle).
+  bool edge_counts[3] = {true, true, true};
+  if (n.squaredNorm() > 0) {
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d& a = t[k];
+      const Eigen::Vector3d outward = (t[(k + 1) % 3] - a).cross(n);
+      // Outward from the triangle: the third corner lies on the other side.
+      const double sign = outward.dot(t[(k + 2) % 3] - a) > 0 ? -1.0 : 1.0;
+      const double reach = outward.cwiseAbs().dot(half) - sign * outward.dot(a);
+      edge_counts[k] = reach >= -slack * outward.cwiseAbs().sum();
+    }
+  }
+  // The four box edges along each axis; each needs the triangle past both faces that meet there, and within
+  // the box's extent along the edge.
+  for (int along = 0; along < 3; ++along) {
+    if (lo[along] > half[along] + slack || hi[along] < -half[along] - slack) continue;
+    const int i = (along + 1) % 3, j = (along + 2) % 3;
+    const int need = 1 << i | 1 << j;
+    for (int m = 0; m < 4; ++m) {
+      const int c0 = (m & 1) << i | (m >> 1) << j, c1 = c0 | 1 << along;
+      if ((past(c0) & need) != need) continue;
+      for (int k = 0; k < 3; ++k) {
+        if (!edge_counts[k]) continue;
+        Eigen::Vector3d on_edge, on_triangle;
+        const double d =
+            segmentSegmentSquaredDistance(corners[c0], corners[c1], t[k], t[(k + 1) % 3], &on_edge, &on_triangle);
+        if (d < best.squared) best = {d, on_edge, on_triangle, id};
+      }
+    }
+  }
+}
+
+// The box's pose and shape for the tests of one query; triangles come in frame M.
+struct BoxFrame {
+  Eigen::Isometry3d X_BM;
+  Eigen::Vector3d half;
+  Eigen::Vector3d corners[8];  // frame B
+};
+
+// Triangle `id` (corners, bounding sphere and plane in frame M) against the box, if its sphere can beat the
+// best so far.
+inline void considerTriangle(const BoxFrame& box, const std::array<Eigen::Vector3d, 3>& c, const Eigen::Vector4d& sphere,
+                             const Eigen::Vector4d& plane, int id, Best& best) {
+  const Eigen::Vector3d center_B = box.X_BM * sphere.head<3>();
+  const double reach = std::sqrt(pointBoxSquaredDistance(center_B, box.half, nullptr)) - sphere.w();
+  if (reach > 0 && reach * reach >= best.squared) return;
+  const Eigen::Vector3d t[3] = {box.X_BM * c[0], box.X_BM * c[1], box.X_BM * c[2]};
+  // The triangle's box against the box, before anything that costs more.
+  const Eigen::Vector3d lo = t[0].cwiseMin(t[1]).cwiseMin(t[2]), hi = t[0].cwiseMax(t[1]).cwiseMax(t[2]);
+  const double box_gap = (lo - box.half).cwiseMax(-box.half - hi).cwiseMax(0.0).squaredNorm() * kGapShrink;
+  if (box_gap >= best.squared) return;
+  Eigen::Vector4d plane_S;
+  plane_S.head<3>() = box.X_BM.linear() * plane.head<3>();
+  plane_S.w() = plane_S.head<3>().dot(t[0]);
+  if (plane.head<3>().squaredNorm() == 0) plane_S.setZero();
+  const double plane_gap = std::abs(plane_S.w()) - plane_S.head<3>().cwiseAbs().dot(box.half);
+  if (plane_gap > 0 && plane_gap * plane_gap * kGapShrink >= best.squared) return;
+  Eigen::Vector4d sphere_S;
+  sphere_S.head<3>() = center_B;
+  sphere_S.w() = sphere.w();
+  testTriangleApart(t, plane_S, sphere_S, box.half, box.corners, box_gap > 0 || plane_gap > 0, id, best);
+}
+
+// The exact search over the whole mesh through its Bvh, below best.squared.
+void searchBvh(const MeshModel& mesh, const BoxFrame& box, Best& best) {
   const auto& nodes = mesh.bvh.nodes;
   // A node's sphere against the box: its center's distance to the box, minus its radius. (Adding the nodes'
   // axis-aligned boxes against the box's bounds changed nothing measurable in cfl_shape_bench; separating
   // the nodes' oriented boxes from the box along both sets of axes pruned too little for its cost.)
   auto bound = [&](const BvhNode& node) {
-    return std::sqrt(pointBoxSquaredDistance(X_BM * node.center, half, nullptr)) - node.radius;
+    return std::sqrt(pointBoxSquaredDistance(box.X_BM * node.center, box.half, nullptr)) - node.radius;
   };
   struct Pending {
     int node;
@@ -133,23 +259,10 @@ BoxDistance computeBoxDistance(const CflModel& model, const Eigen::Isometry3d& X
     if (pending.bound > 0 && pending.bound * pending.bound >= best.squared) continue;
     const BvhNode& node = nodes[pending.node];
     if (node.isLeaf()) {
-      for (int i = node.first; i < node.first + node.count; ++i) {
-        // A leaf holds several triangles: each is first bounded by its own sphere against the box.
-        const Eigen::Vector3d center_B = X_BM * mesh.leaf_spheres[i].head<3>();
-        const double reach = std::sqrt(pointBoxSquaredDistance(center_B, half, nullptr)) - mesh.leaf_spheres[i].w();
-        if (reach > 0 && reach * reach >= best.squared) continue;
-        const auto& c = mesh.leaf_corners[i];
-        const Eigen::Vector3d t[3] = {X_BM * c[0], X_BM * c[1], X_BM * c[2]};
-        const Eigen::Vector4d& p = mesh.leaf_planes[i];
-        Eigen::Vector4d plane_S;
-        plane_S.head<3>() = X_BM.linear() * p.head<3>();
-        plane_S.w() = plane_S.head<3>().dot(t[0]);
-        if (p.head<3>().squaredNorm() == 0) plane_S.setZero();
-        Eigen::Vector4d sphere_S;
-        sphere_S.head<3>() = center_B;
-        sphere_S.w() = mesh.leaf_spheres[i].w();
-        testTriangle(t, plane_S, sphere_S, half, corners, mesh.bvh.triangle_ids[i], best);
-      }
+      // A leaf holds several triangles: each is first bounded by its own sphere against the box.
+      for (int i = node.first; i < node.first + node.count; ++i)
+        considerTriangle(box, mesh.leaf_corners[i], mesh.leaf_spheres[i], mesh.leaf_planes[i], mesh.bvh.triangle_ids[i],
+                         best);
       if (best.squared == 0) break;
       continue;
     }
@@ -160,6 +273,28 @@ BoxDistance computeBoxDistance(const CflModel& model, const Eigen::Isometry3d& X
     if (!(far.bound > 0 && far.bound * far.bound >= best.squared)) stack[top++] = far;
     if (!(near.bound > 0 && near.bound * near.bound >= best.squared)) stack[top++] = near;
   }
+}
+
+}  // namespace
+
+BoxDistance computeBoxDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Isometry3d& X_WB,
+                               const Eigen::Vector3d& half, double upper_bound) {
+  validatePose(X_WM, "X_WM");
+  validatePose(X_WB, "X_WB");
+  if (!half.allFinite() || !(half.minCoeff() > 0)) {
+    std::ostringstream message;
+    message << "computeBoxDistance: half extents must be finite and > 0, got " << half.transpose();
+    throw Error(message.str());
+  }
+  if (!(upper_bound >= 0)) throw Error("computeBoxDistance: upper_bound must be >= 0");
+  BoxFrame box;
+  box.X_BM = X_WB.inverse() * X_WM;
+  box.half = half;
+  for (int c = 0; c < 8; ++c)
+    box.corners[c] =
+        Eigen::Vector3d(c & 1 ? half.x() : -half.x(), c & 2 ? half.y() : -half.y(), c & 4 ? half.z() : -half.z());
+  Best best{upper_bound * upper_bound};
+  searchBvh(model.geometry, box, best);
   BoxDistance result;
   if (best.triangle < 0) return result;
   result.distance = std::sqrt(best.squared);

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 #include <string>
 
@@ -47,6 +48,56 @@ TEST(BoxQuery, EqualsBruteForceApartTouchingAndAroundTheMesh) {
     }
     EXPECT_GT(apart, 20) << name;
     EXPECT_GT(touching, 10) << name;
+  }
+}
+
+// The distance by brute force: every mesh triangle against the box's 12 triangles, and 0 when a mesh vertex
+// lies inside the box.
+double bruteForceBoxDistance(const CflModel& model, const TriangleMesh& mesh, const Eigen::Isometry3d& X_WM,
+                             const Eigen::Isometry3d& X_WB, const Eigen::Vector3d& half) {
+  const MeshModel box = makeMeshModel(test::makeBox(-half, half));
+  double expected = bruteForceDistance(model.geometry, X_WM, box, X_WB).distance;
+  for (const auto& v : mesh.vertices)
+    if (((X_WB.inverse() * (X_WM * v)).cwiseAbs() - half).maxCoeff() <= 0) expected = 0;
+  return expected;
+}
+
+// Where only some of a triangle's features can be closest (the pruning by normal cones and separating gaps):
+// boxes aligned with an axis-aligned mesh, so that faces and edges are parallel and touch exactly, boxes
+// turned by small angles, far boxes, and a mesh with zero-area and duplicated triangles.
+TEST(BoxQuery, EqualsBruteForceOnParallelFacesDegenerateTrianglesAndFarBoxes) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> uniform(-1, 1);
+  for (const auto& [name, mesh] : std::vector<std::pair<std::string, TriangleMesh>>{
+           {"blocks", test::merge(test::makeBox(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(0, 0, 0)),
+                                  test::makeBox(Eigen::Vector3d(0.5, 0.5, 0.5), Eigen::Vector3d(1, 2, 1)))},
+           {"messy", test::makeMessyMesh()},
+           {"hemisphere", test::makeHemisphere()}}) {
+    const CflModel model = buildCflModel(mesh);
+    const double size = model.geometry.bounds.diagonal();
+    int apart = 0, touching = 0;
+    for (int i = 0; i < 200; ++i) {
+      const Eigen::Isometry3d X_WM = Eigen::Isometry3d::Identity();
+      Eigen::Isometry3d X_WB = Eigen::Isometry3d::Identity();
+      // Aligned (a quarter of the poses), slightly turned, or anyhow.
+      if (i % 4 == 1) X_WB.linear() = Eigen::AngleAxisd(1e-3 * uniform(rng), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      if (i % 4 == 2) X_WB = test::randomPose(rng, 1.0);
+      if (i % 4 == 3) X_WB.linear() = Eigen::AngleAxisd(0.5 * M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+      const Eigen::Vector3d half = Eigen::Vector3d(0.1 + 0.1 * std::abs(uniform(rng)), 0.05, 0.2) * size;
+      // Grid-snapped centers put faces exactly level with the mesh's; a few boxes are far away.
+      Eigen::Vector3d center(std::round(4 * uniform(rng)) / 4, std::round(4 * uniform(rng)) / 4, uniform(rng));
+      if (i % 10 == 0) center *= 5;
+      X_WB.translation() = center * size;
+      const double expected = bruteForceBoxDistance(model, mesh, X_WM, X_WB, half);
+      const BoxDistance got = computeBoxDistance(model, X_WM, X_WB, half);
+      const std::string at = name + " pose " + std::to_string(i);
+      ASSERT_GE(got.triangle, 0) << at;
+      EXPECT_NEAR(got.distance, expected, 1e-9 * size) << at;
+      EXPECT_NEAR((got.box_point - got.mesh_point).norm(), got.distance, 1e-9 * size) << at;
+      (expected > 0 ? apart : touching)++;
+    }
+    EXPECT_GT(apart, 20) << name;
+    EXPECT_GT(touching, 3) << name;
   }
 }
 

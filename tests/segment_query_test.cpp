@@ -122,6 +122,41 @@ TEST(SegmentQuery, UnsignedEqualsBruteForceWithPointsOnTheSegmentAndTheTriangle)
   }
 }
 
+// Where only some of a triangle's features can be closest to a segment (the search tries an end only if the
+// triangle reaches behind it, an edge only if the segment reaches past it): segments parallel to faces and
+// edges of an axis-aligned mesh, lying in their planes, crossing them, on grid points; a mesh with zero-area
+// and duplicated triangles; an open mesh.
+TEST(SegmentQuery, UnsignedEqualsBruteForceOnParallelSegmentsAndDegenerateTriangles) {
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> uniform(-1, 1);
+  for (const auto& [name, mesh] : std::vector<std::pair<std::string, TriangleMesh>>{
+           {"blocks", test::merge(test::makeBox(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(0, 0, 0)),
+                                  test::makeBox(Eigen::Vector3d(0.5, 0.5, 0.5), Eigen::Vector3d(1, 2, 1)))},
+           {"messy", test::makeMessyMesh()},
+           {"hemisphere", test::makeHemisphere()}}) {
+    const CflModel model = buildCflModel(mesh);
+    const double size = model.geometry.bounds.diagonal();
+    const Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+    for (int i = 0; i < 300; ++i) {
+      // Ends on a grid of quarter units (so on the blocks' faces and edges, or level with them), along an
+      // axis, or anywhere.
+      auto gridPoint = [&]() {
+        return Eigen::Vector3d(std::round(6 * uniform(rng)) / 4, std::round(6 * uniform(rng)) / 4,
+                               std::round(6 * uniform(rng)) / 4);
+      };
+      Eigen::Vector3d p0 = gridPoint(), p1 = p0;
+      if (i % 3 == 0) p1[i % 9 / 3] += std::round(4 * uniform(rng)) / 4;
+      if (i % 3 == 1) p1 = gridPoint();
+      if (i % 3 == 2) p1 = p0 + 0.3 * Eigen::Vector3d(uniform(rng), uniform(rng), uniform(rng));
+      const std::string at = name + " segment " + std::to_string(i);
+      const SegmentDistance got = computeSegmentDistance(model, X, p0, p1);
+      ASSERT_GE(got.triangle, 0) << at;
+      EXPECT_NEAR(got.distance, bruteSegment(mesh, X, p0, p1), 1e-9 * size) << at;
+      EXPECT_NEAR((got.segment_point - got.mesh_point).norm(), got.distance, 1e-9 * size) << at;
+    }
+  }
+}
+
 TEST(SegmentQuery, SignedIsTheLeastBruteForceSignedDistanceWithinTheCertifiedTolerance) {
   const Case& c = cases()[0];
   ASSERT_TRUE(c.model.sign.closure.closed) << c.model.sign.closure.reason;

@@ -25,10 +25,13 @@ struct BoxDistance {
 /// `upper_bound` (a length >= 0) are looked for.
 ///
 /// Exact: a best-first walk of the mesh's Bvh, nodes bounded by their spheres against the box, triangles by
-/// their planes against the box's support; for a triangle, the least of its corners' distances to the box and
-/// the twelve box edges' distances to it (every closest pair of two convex polytopes has a vertex of one, or
-/// an edge of the box, in it), or 0 when it meets the box (a corner inside, an edge of the box crossing it, or
-/// an edge of it crossing the box). Throws cfl::Error for bad poses, non-positive or non-finite half extents,
+/// their spheres, their bounding boxes in the box's frame and their planes against the box's support, then
+/// by the separating-axis gap (box axes, triangle normal, the nine axis-edge cross products), which is <= 0
+/// exactly when the triangle meets the box. Apart, a triangle's distance is the least over the features a
+/// closest pair can have (a triangle corner against the box, a box corner against the triangle, a box edge
+/// against a triangle edge), each tried only where the other shape reaches into its normal cone; meeting it,
+/// 0, with a common point (a corner inside, an edge of the box crossing it, or an edge of it crossing the
+/// box). Throws cfl::Error for bad poses, non-positive or non-finite half extents,
 /// or a negative bound. Thread-safe, allocation-free.
 BoxDistance computeBoxDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Isometry3d& X_WB,
                                const Eigen::Vector3d& half,

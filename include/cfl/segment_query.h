@@ -58,7 +58,9 @@ struct SegmentDistance {
 /// pose X_WM.
 ///
 /// Unsigned: a depth-first, nearer-child-first walk of the mesh's Bvh, nodes bounded by their spheres and boxes,
-/// triangles by their planes; exact. (The regions' leaf lists at the segment's ends as a first bound cost more
+/// triangles by their planes; exact. Of a triangle, only the pairs that can be closest are measured (a segment
+/// end only if the triangle reaches behind it along the segment, a triangle edge only if the segment reaches
+/// past its line, and the plane crossing). (The regions' leaf lists at the segment's ends as a first bound cost more
 /// than they saved.) The signed query's point queries use the regions.
 /// Signed (closed mesh): when the segment neither touches the surface nor starts inside, the unsigned answer.
 /// Otherwise a branch and bound over the segment on the signed point distance f, which is 1-Lipschitz: an

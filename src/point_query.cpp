@@ -168,8 +168,11 @@ std::vector<std::uint32_t> spatialOrder(const CflModel& model, const Eigen::Isom
 // together by hand may not).
 void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, double& best_squared, int& best_triangle,
                          Eigen::Vector3d* closest) {
-  if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() &&
-      geometry.leaf_corners.size() == geometry.bvh.triangle_ids.size()) {
+  const std::size_t leaves = geometry.bvh.triangle_ids.size();
+  if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.leaf_corners.size() == leaves &&
+      geometry.leaf_spheres.size() == leaves && geometry.leaf_planes.size() == leaves) {
+    detail::nearestTriangleCompactBounded(geometry, p, best_squared, best_triangle, closest);
+  } else if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.leaf_corners.size() == leaves) {
     detail::nearestTriangleCompact(geometry, p, best_squared, best_triangle, closest);
   } else {
     detail::nearestTriangle(geometry, p, best_squared, best_triangle, closest);

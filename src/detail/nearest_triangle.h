@@ -5,6 +5,7 @@
 #include "cfl/triangle_distance.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 
 namespace cfl::detail {
@@ -91,6 +92,73 @@ inline void nearestTriangleCompact(const MeshModel& model, const Eigen::Vector3d
         if (d < best_squared) {
           best_squared = d;
           best_triangle = model.bvh.triangle_ids[i];
+          if (closest) *closest = q;
+        }
+      }
+      continue;
+    }
+    const double d_left = boxSquared(nodes[node.first]);
+    const double d_right = boxSquared(nodes[node.first + 1]);
+    const bool left_first = d_left <= d_right;
+    const double d_far = left_first ? d_right : d_left;
+    const double d_near = left_first ? d_left : d_right;
+    if (d_far <= best_squared) stack[top++] = {d_far, left_first ? node.first + 1 : node.first};
+    if (d_near <= best_squared) stack[top++] = {d_near, left_first ? node.first : node.first + 1};
+  }
+}
+/// nearestTriangleCompact with each triangle of a leaf first bounded by its own sphere and plane
+/// (MeshModel::leaf_spheres, leaf_planes, which must match the Bvh), as the list scan of the point query
+/// bounds its entries: far from the mesh the node boxes are loose and a walk reaches many leaves whose
+/// triangles are all beyond the best distance. The bounds only skip triangles that could not be strictly
+/// closer than the best, and the walk is the same: same answer, ties included, as nearestTriangleCompact.
+inline void nearestTriangleCompactBounded(const MeshModel& model, const Eigen::Vector3d& p, double& best_squared,
+                                          int& best_triangle, Eigen::Vector3d* closest = nullptr) {
+  // Both bounds went through a rounding or two: shrunk by far more than their error before they may prune.
+  constexpr double kShrink = 1 - 1e-12;
+  const auto& nodes = model.compact_nodes;
+  if (nodes.empty()) return;
+  const auto boxSquared = [&p](const CompactBvhNode& node) {
+    double sum = 0;
+    for (int axis = 0; axis < 3; ++axis) {
+      const double gap = std::max(double(node.min[axis]) - p[axis], 0.0) + std::max(p[axis] - double(node.max[axis]), 0.0);
+      sum += gap * gap;
+    }
+    return sum;
+  };
+  struct Pending {
+    double bound;
+    int node;
+  };
+  Pending stack[128];
+  int top = 0;
+  stack[top++] = {boxSquared(nodes[0]), 0};
+  // The best distance unsquared, for the bounds (a square root only when it improves). Infinite entry bounds
+  // stay infinite: every bound passes.
+  double best = std::sqrt(best_squared);
+  // The plane bound's rounding, as in the list scan: the products n . p and the offset round at the scale
+  // of the coordinates, and the corners sit off the plane by a few ulps of the triangle's size.
+  const double scale = p.cwiseAbs().sum();
+  while (top > 0) {
+    const Pending pending = stack[--top];
+    if (pending.bound > best_squared) continue;
+    const CompactBvhNode& node = nodes[pending.node];
+    if (node.count > 0) {
+      for (int i = node.first; i < node.first + node.count; ++i) {
+        const Eigen::Vector4d& sphere = model.leaf_spheres[i];
+        const double reach_squared = (p - sphere.head<3>()).squaredNorm();
+        const double rim = sphere[3] + best;
+        if (reach_squared * kShrink >= rim * rim) continue;
+        const Eigen::Vector4d& plane = model.leaf_planes[i];
+        const double height = std::abs(plane.head<3>().dot(p) - plane[3]) -
+                              1e-13 * (scale + std::abs(plane[3]) + sphere[3]);
+        if (height * kShrink >= best) continue;
+        const auto& c = model.leaf_corners[i];
+        Eigen::Vector3d q;
+        const double d = pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q);
+        if (d < best_squared) {
+          best_squared = d;
+          best_triangle = model.bvh.triangle_ids[i];
+          best = std::sqrt(d);
           if (closest) *closest = q;
         }
       }

@@ -4,12 +4,150 @@
 #include "detail/query_kernels.h"
 
 #if CFL_X86_64_V3_KERNELS
+#include <immintrin.h>
 
 #pragma GCC push_options
 #pragma GCC target("arch=x86-64-v3")
 
 namespace cfl::detail::x86_64_v3 {
 #include "detail/triangle_distance_kernels.inc"
+
+namespace {
+
+// Three coordinates, each over the four lanes (one triangle per lane). The arithmetic below spells out the
+// scalar kernel's Eigen expressions operation by operation, in their order: sums of products left to right,
+// cross products as Eigen writes them.
+struct Lanes3 {
+  __m256d x, y, z;
+};
+
+inline Lanes3 sub(const Lanes3& a, const Lanes3& b) {
+  return {_mm256_sub_pd(a.x, b.x), _mm256_sub_pd(a.y, b.y), _mm256_sub_pd(a.z, b.z)};
+}
+inline __m256d dot(const Lanes3& a, const Lanes3& b) {
+  return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(a.x, b.x), _mm256_mul_pd(a.y, b.y)), _mm256_mul_pd(a.z, b.z));
+}
+inline Lanes3 cross(const Lanes3& l, const Lanes3& r) {
+  return {_mm256_sub_pd(_mm256_mul_pd(l.y, r.z), _mm256_mul_pd(l.z, r.y)),
+          _mm256_sub_pd(_mm256_mul_pd(l.z, r.x), _mm256_mul_pd(l.x, r.z)),
+          _mm256_sub_pd(_mm256_mul_pd(l.x, r.y), _mm256_mul_pd(l.y, r.x))};
+}
+inline Lanes3 blend(const Lanes3& a, const Lanes3& b, __m256d take_b) {
+  return {_mm256_blendv_pd(a.x, b.x, take_b), _mm256_blendv_pd(a.y, b.y, take_b), _mm256_blendv_pd(a.z, b.z, take_b)};
+}
+// start + s dir, per coordinate start + (s * dir) as Eigen evaluates it.
+inline Lanes3 along(const Lanes3& start, __m256d s, const Lanes3& dir) {
+  return {_mm256_add_pd(start.x, _mm256_mul_pd(s, dir.x)), _mm256_add_pd(start.y, _mm256_mul_pd(s, dir.y)),
+          _mm256_add_pd(start.z, _mm256_mul_pd(s, dir.z))};
+}
+
+// Rows r0..r3 (one per triangle) become columns: r_k holds element k of every row.
+inline void transpose(__m256d& r0, __m256d& r1, __m256d& r2, __m256d& r3) {
+  const __m256d t0 = _mm256_unpacklo_pd(r0, r1);
+  const __m256d t1 = _mm256_unpackhi_pd(r0, r1);
+  const __m256d t2 = _mm256_unpacklo_pd(r2, r3);
+  const __m256d t3 = _mm256_unpackhi_pd(r2, r3);
+  r0 = _mm256_permute2f128_pd(t0, t2, 0x20);
+  r1 = _mm256_permute2f128_pd(t1, t3, 0x20);
+  r2 = _mm256_permute2f128_pd(t0, t2, 0x31);
+  r3 = _mm256_permute2f128_pd(t1, t3, 0x31);
+}
+
+// pointSegment of the scalar kernel: the squared distance from p to a + s e (s clamped to [0, 1]), and s.
+inline __m256d pointSegment4(const Lanes3& p, const Lanes3& a, const Lanes3& e, __m256d e2, __m256d& s_out) {
+  const Lanes3 d = sub(p, a);
+  const __m256d s = dot(e, d);
+  __m256d t = _mm256_div_pd(s, e2);
+  t = _mm256_blendv_pd(t, _mm256_set1_pd(1.0), _mm256_cmp_pd(s, e2, _CMP_GE_OQ));
+  t = _mm256_blendv_pd(t, _mm256_setzero_pd(), _mm256_cmp_pd(s, _mm256_setzero_pd(), _CMP_LE_OQ));
+  s_out = t;
+  const Lanes3 offset = sub(d, {_mm256_mul_pd(t, e.x), _mm256_mul_pd(t, e.y), _mm256_mul_pd(t, e.z)});
+  return dot(offset, offset);
+}
+
+}  // namespace
+
+void pointTriangleSquaredDistances4(const Vec& p, const std::array<Vec, 3>* const triangles[4], double squared[4],
+                                    Vec closest[4]) {
+  // Each triangle is nine doubles in a row: (a, b.x) and (b.y, b.z, c.x, c.y) transposed by fours, c.z apart.
+  __m256d r0 = _mm256_loadu_pd(triangles[0]->data()->data());
+  __m256d r1 = _mm256_loadu_pd(triangles[1]->data()->data());
+  __m256d r2 = _mm256_loadu_pd(triangles[2]->data()->data());
+  __m256d r3 = _mm256_loadu_pd(triangles[3]->data()->data());
+  transpose(r0, r1, r2, r3);
+  __m256d u0 = _mm256_loadu_pd(triangles[0]->data()->data() + 4);
+  __m256d u1 = _mm256_loadu_pd(triangles[1]->data()->data() + 4);
+  __m256d u2 = _mm256_loadu_pd(triangles[2]->data()->data() + 4);
+  __m256d u3 = _mm256_loadu_pd(triangles[3]->data()->data() + 4);
+  transpose(u0, u1, u2, u3);
+  const __m256d cz = _mm256_set_pd((*triangles[3])[2].z(), (*triangles[2])[2].z(), (*triangles[1])[2].z(),
+                                   (*triangles[0])[2].z());
+  const Lanes3 a{r0, r1, r2}, b{r3, u0, u1}, c{u2, u3, cz};
+  const Lanes3 q{_mm256_set1_pd(p.x()), _mm256_set1_pd(p.y()), _mm256_set1_pd(p.z())};
+
+  const Lanes3 ab = sub(b, a), ac = sub(c, a);
+  const Lanes3 n = cross(ab, ac);
+  const __m256d nn = dot(n, n);
+  const __m256d ab2 = dot(ab, ab), ac2 = dot(ac, ac);
+  const __m256d fast =
+      _mm256_cmp_pd(nn, _mm256_mul_pd(_mm256_mul_pd(_mm256_set1_pd(kFastSin2), ab2), ac2), _CMP_GT_OQ);
+  const Lanes3 ap = sub(q, a);
+  const Lanes3 bc = sub(c, b);
+  const __m256d s0 = dot(n, cross(ab, ap));
+  const __m256d s1 = dot(n, cross(bc, sub(q, b)));
+  const __m256d s2 = dot(n, cross(ap, ac));
+  const __m256d zero = _mm256_setzero_pd();
+
+  // Inside the face: the height over the plane.
+  const __m256d h = dot(n, ap);
+  const __m256d k = _mm256_div_pd(h, nn);
+  const __m256d face_squared = _mm256_mul_pd(h, k);
+  const Lanes3 face_closest = sub(q, {_mm256_mul_pd(k, n.x), _mm256_mul_pd(k, n.y), _mm256_mul_pd(k, n.z)});
+
+  // Else the edges whose lines separate p from the triangle, in the scalar kernel's order, a later one taken
+  // when !(d >= best) as there.
+  __m256d t0, t1, t2;
+  const __m256d d0 = pointSegment4(q, a, ab, ab2, t0);
+  const __m256d d1 = pointSegment4(q, b, bc, dot(bc, bc), t1);
+  const __m256d d2 = pointSegment4(q, a, ac, ac2, t2);
+  const __m256d out0 = _mm256_cmp_pd(s0, zero, _CMP_NGE_UQ);
+  const __m256d out1 = _mm256_cmp_pd(s1, zero, _CMP_NGE_UQ);
+  const __m256d out2 = _mm256_cmp_pd(s2, zero, _CMP_NGE_UQ);
+  __m256d best = _mm256_blendv_pd(_mm256_set1_pd(std::numeric_limits<double>::infinity()), d0, out0);
+  __m256d t = _mm256_blendv_pd(zero, t0, out0);
+  Lanes3 start = a, dir = ab;
+  const __m256d take1 = _mm256_and_pd(out1, _mm256_cmp_pd(d1, best, _CMP_NGE_UQ));
+  best = _mm256_blendv_pd(best, d1, take1);
+  t = _mm256_blendv_pd(t, t1, take1);
+  start = blend(start, b, take1);
+  dir = blend(dir, bc, take1);
+  const __m256d take2 = _mm256_and_pd(out2, _mm256_cmp_pd(d2, best, _CMP_NGE_UQ));
+  best = _mm256_blendv_pd(best, d2, take2);
+  t = _mm256_blendv_pd(t, t2, take2);
+  start = blend(start, a, take2);
+  dir = blend(dir, ac, take2);
+  const Lanes3 edge_closest = along(start, t, dir);
+
+  const __m256d inside = _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(s0, zero, _CMP_GE_OQ), _mm256_cmp_pd(s1, zero, _CMP_GE_OQ)),
+                                       _mm256_cmp_pd(s2, zero, _CMP_GE_OQ));
+  const __m256d result = _mm256_blendv_pd(best, face_squared, inside);
+  const Lanes3 point = blend(edge_closest, face_closest, inside);
+  alignas(32) double xs[4], ys[4], zs[4];
+  _mm256_storeu_pd(squared, result);
+  _mm256_store_pd(xs, point.x);
+  _mm256_store_pd(ys, point.y);
+  _mm256_store_pd(zs, point.z);
+  const int fast_lanes = _mm256_movemask_pd(fast);
+  for (int lane = 0; lane < 4; ++lane) {
+    if (fast_lanes & (1 << lane)) {
+      closest[lane] = Vec(xs[lane], ys[lane], zs[lane]);
+    } else {
+      const auto& c3 = *triangles[lane];
+      squared[lane] = pointTriangleSquaredDistance(p, c3[0], c3[1], c3[2], &closest[lane]);
+    }
+  }
+}
+
 }  // namespace cfl::detail::x86_64_v3
 
 #pragma GCC pop_options

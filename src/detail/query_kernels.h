@@ -91,5 +91,13 @@ double segmentSegmentSquaredDistance(const Eigen::Vector3d& p0, const Eigen::Vec
 double triangleTriangleSquaredDistance(const Eigen::Vector3d p[3], const Eigen::Vector3d q[3],
                                        Eigen::Vector3d* closest_p, Eigen::Vector3d* closest_q);
 bool trianglesIntersect(const Eigen::Vector3d p[3], const Eigen::Vector3d q[3], Eigen::Vector3d* point);
+
+// pointTriangleSquaredDistance from p to four triangles at once (AVX2, four lanes of doubles): squared[k] and
+// closest[k] are bit for bit what pointTriangleSquaredDistance(p, (*triangles[k])[0], [1], [2], &closest[k])
+// returns, every operation rounding as the scalar code's does (no fused multiply-add); a sliver, which the
+// scalar code treats apart, gets that scalar code. The point query runs its exact tests through it, so that
+// a batch of candidates costs about one scalar test.
+void pointTriangleSquaredDistances4(const Eigen::Vector3d& p, const std::array<Eigen::Vector3d, 3>* const triangles[4],
+                                    double squared[4], Eigen::Vector3d closest[4]);
 }  // namespace cfl::detail::x86_64_v3
 #endif

@@ -182,8 +182,31 @@ void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, do
 
 // The closest triangle to p_M strictly within sqrt(best_squared) (the entry value), through the point's leaf
 // when it lies in the regions and has a list, else through the Bvh. best_triangle stays -1 when there is none.
+// Lays out list `list` of `leaf` (its entry bounds and unit as searchNearest reads them) in `cache`.
+void fillListCache(const CflModel& model, std::uint32_t leaf, std::uint32_t list, std::uint32_t length,
+                   const std::uint8_t* bounds, double unit, detail::PointListCache& cache) {
+  constexpr int kBlock = detail::PointListCache::kBlock;
+  const std::uint32_t padded = (length + 3) / 4 * 4;
+  cache.leaf = leaf;
+  cache.length = length;
+  cache.lanes.resize(std::size_t(padded / 4) * kBlock);
+  cache.ids.resize(padded);
+  model.regions.forEachListTriangle(list, length, [&](std::ptrdiff_t n, std::int32_t t) { cache.ids[n] = t; });
+  const auto& spheres = model.geometry.spheres;
+  const auto& planes = model.geometry.planes;
+  for (std::uint32_t n = 0; n < padded; ++n) {
+    double* block = cache.lanes.data() + std::size_t(n / 4) * kBlock + n % 4;
+    if (n >= length) cache.ids[n] = cache.ids[0];
+    const std::int32_t t = cache.ids[n];
+    const double bound = n < length ? double(bounds[n]) * unit : 0.0;
+    block[0] = n < length ? bound * bound : std::numeric_limits<double>::infinity();
+    for (int k = 0; k < 4; ++k) block[4 + 4 * k] = spheres[t][k];
+    for (int k = 0; k < 4; ++k) block[20 + 4 * k] = planes[t][k];
+  }
+}
+
 void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& best_squared, int& best_triangle,
-                   Eigen::Vector3d& closest, detail::PointTriangles4 four) {
+                   Eigen::Vector3d& closest, detail::PointTriangles4 four, detail::PointListCache* cache) {
   const RegionTree& regions = model.regions;
   const Aabb box = regions.bounds();
   const bool inside = !regions.nodes.empty() && (p_M.array() >= box.min.array()).all() &&
@@ -198,6 +221,22 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       const std::uint32_t length = regions.listLength(list);
       const std::uint8_t* bounds = regions.listBoundsBegin(cell.leaf);
       const double unit = regions.entryBoundUnit(cell.depth) * kBoundShrink;
+#if CFL_X86_64_V3_KERNELS
+      if (four != nullptr && cache != nullptr) {
+        if (cache->leaf != cell.leaf) fillListCache(model, cell.leaf, list, length, bounds, unit, *cache);
+        detail::x86_64_v3::scanPointListCached(p_M, *cache, model.geometry, best_squared, best_triangle, closest);
+        return;
+      }
+      if (four != nullptr) {
+        // The x86-64-v3 build's scan: the same bounds four entries at a time, the same answer.
+        const std::int32_t base = regions.listBase(list);
+        const std::uint16_t* low = regions.list_entry_ids.data() + regions.listIdsBegin(list) + 2;
+        const detail::PointListScan scan{low, base >= 0 ? nullptr : regions.list_high_ids.data() + std::uint32_t(~base),
+                                         base, bounds, length, unit};
+        detail::x86_64_v3::scanPointList(p_M, scan, model.geometry, best_squared, best_triangle, closest);
+        return;
+      }
+#endif
       const auto& corners = model.geometry.corners;
       const auto& spheres = model.geometry.spheres;
       const auto& planes = model.geometry.planes;
@@ -269,13 +308,14 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
 // that distance leaves that triangle in), unless nothing lies below the bound (rounding put it a hair
 // under the closest), and then the plain search runs.
 void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
-                       int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four) {
+                       int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four,
+                       detail::PointListCache* cache) {
   const double seed = hint_squared * (1 + 1e-9);
   if (seed > 0 && seed < best_squared) {
     double found_squared = seed;
     int found = -1;
     Eigen::Vector3d q;
-    searchNearest(model, p_M, found_squared, found, q, four);
+    searchNearest(model, p_M, found_squared, found, q, four, cache);
     if (found >= 0) {
       best_squared = found_squared;
       best_triangle = found;
@@ -283,7 +323,7 @@ void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::
       return;
     }
   }
-  searchNearest(model, p_M, best_squared, best_triangle, closest, four);
+  searchNearest(model, p_M, best_squared, best_triangle, closest, four, cache);
 }
 
 // Which feature of triangle (a, b, c) holds the point closest to p: 0 the face, 1 + e edge e (corners e and
@@ -383,13 +423,14 @@ void validatePoint(const Eigen::Vector3d& p_W, const char* what) {
 // searchNearestFrom.
 PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p_W,
                             const PointQueryOptions& options, detail::PointTriangles4 four,
+                            detail::PointListCache* cache = nullptr,
                             double hint_squared = std::numeric_limits<double>::infinity()) {
   const Eigen::Vector3d p_M = X_WM.inverse(Eigen::Isometry) * p_W;
   const double infinity = std::numeric_limits<double>::infinity();
   double best_squared = std::isinf(options.upper_bound) ? infinity : options.upper_bound * options.upper_bound;
   int triangle = -1;
   Eigen::Vector3d closest_M = Eigen::Vector3d::Zero();
-  searchNearestFrom(model, hint_squared, p_M, best_squared, triangle, closest_M, four);
+  searchNearestFrom(model, hint_squared, p_M, best_squared, triangle, closest_M, four, cache);
   double distance = triangle >= 0 ? std::sqrt(best_squared) : infinity;
   if (triangle >= 0 && !(distance < options.upper_bound)) triangle = -1, distance = infinity;  // rounding at the bound
 
@@ -418,7 +459,7 @@ PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM
     double any_squared = infinity;
     int any_triangle = -1;
     Eigen::Vector3d any_closest = Eigen::Vector3d::Zero();
-    searchNearest(model, p_M, any_squared, any_triangle, any_closest, four);
+    searchNearest(model, p_M, any_squared, any_triangle, any_closest, four, cache);
     inside = any_triangle >= 0 && any_squared > 0 && pseudonormal(model, any_triangle, p_M).dot(p_M - any_closest) < 0;
   }
   if (triangle < 0) {
@@ -484,6 +525,8 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
       // Along the curve the previous point is close by: its distance plus the step, distance being
       // 1-Lipschitz, hints at this one's (a hint never changes an answer, see searchNearestFrom). The
       // leaves and lists are those of the previous queries, mostly cached: no prefetcher.
+      // Consecutive points mostly share a leaf: its list, laid out once, serves them all.
+      detail::PointListCache cache;
       double previous = std::numeric_limits<double>::infinity();
       Eigen::Vector3d previous_W = Eigen::Vector3d::Zero();
       // The caller's arrays are read and written out of order: each point and result its own cache miss,
@@ -499,7 +542,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
         }
         const std::size_t i = ordered[j];
         const double hint = previous + (points_W[i] - previous_W).norm();
-        results[i] = pointDistance(model, X_WM, points_W[i], options, four, hint * hint);
+        results[i] = pointDistance(model, X_WM, points_W[i], options, four, &cache, hint * hint);
         previous = std::abs(results[i].distance);
         previous_W = points_W[i];
       }

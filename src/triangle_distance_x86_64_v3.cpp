@@ -148,6 +148,119 @@ void pointTriangleSquaredDistances4(const Vec& p, const std::array<Vec, 3>* cons
   }
 }
 
+void scanPointList(const Vec& p, const PointListScan& list, const MeshModel& geometry, double& best_squared,
+                   int& best_triangle, Vec& closest) {
+  // As the generic scan: bounds shrunk by far more than their rounding before they may skip an entry.
+  constexpr double kShrink = 1 - 1e-12;
+  const Eigen::Vector4d* spheres = geometry.spheres.data();
+  const Eigen::Vector4d* planes = geometry.planes.data();
+  const std::array<Vec, 3>* corners = geometry.corners.data();
+  PendingTriangleTests tests;
+  tests.four = &pointTriangleSquaredDistances4;
+  double best = std::sqrt(best_squared);
+  const double scale = std::abs(p.x()) + std::abs(p.y()) + std::abs(p.z());
+  const __m256d px = _mm256_set1_pd(p.x()), py = _mm256_set1_pd(p.y()), pz = _mm256_set1_pd(p.z());
+  const __m256d shrink = _mm256_set1_pd(kShrink);
+  const __m256d slack_scale = _mm256_set1_pd(scale);
+  const __m256d slack_unit = _mm256_set1_pd(1e-13);
+  const __m256d sign_bit = _mm256_set1_pd(-0.0);
+  for (std::uint32_t n = 0; n < list.length; n += 4) {
+    // The entries of this block before the first whose bound reaches the best: sorted, none after it can
+    // beat the best (a block's best may be a batch old, see PendingTriangleTests).
+    int ids[4];
+    int count = 0;
+    const std::uint32_t end = std::min(list.length, n + 4);
+    bool stop = false;
+    for (std::uint32_t m = n; m < end; ++m) {
+      const double bound = double(list.bounds[m]) * list.unit;
+      if (bound * bound >= best_squared) {
+        stop = true;
+        break;
+      }
+      ids[count++] = list.high ? std::int32_t(std::uint32_t(list.low[m]) | std::uint32_t(list.high[m]) << 16)
+                               : list.base + std::int32_t(list.low[m]);
+    }
+    if (count > 0) {
+      for (int k = count; k < 4; ++k) ids[k] = ids[0];
+      __m256d cx = _mm256_loadu_pd(spheres[ids[0]].data()), cy = _mm256_loadu_pd(spheres[ids[1]].data());
+      __m256d cz = _mm256_loadu_pd(spheres[ids[2]].data()), r = _mm256_loadu_pd(spheres[ids[3]].data());
+      transpose(cx, cy, cz, r);
+      __m256d nx = _mm256_loadu_pd(planes[ids[0]].data()), ny = _mm256_loadu_pd(planes[ids[1]].data());
+      __m256d nz = _mm256_loadu_pd(planes[ids[2]].data()), w = _mm256_loadu_pd(planes[ids[3]].data());
+      transpose(nx, ny, nz, w);
+      // The triangle's bounding sphere: |p - center| >= radius + best puts it beyond the best.
+      const Lanes3 offset = sub({px, py, pz}, {cx, cy, cz});
+      const __m256d reach_squared = dot(offset, offset);
+      const __m256d rim = _mm256_add_pd(r, _mm256_set1_pd(best));
+      const __m256d near_sphere =
+          _mm256_cmp_pd(_mm256_mul_pd(reach_squared, shrink), _mm256_mul_pd(rim, rim), _CMP_NGE_UQ);
+      // Its plane (zero for a sliver, which then passes).
+      const __m256d along_normal = _mm256_sub_pd(dot({nx, ny, nz}, {px, py, pz}), w);
+      const __m256d slack =
+          _mm256_mul_pd(slack_unit, _mm256_add_pd(_mm256_add_pd(slack_scale, _mm256_andnot_pd(sign_bit, w)), r));
+      const __m256d height = _mm256_sub_pd(_mm256_andnot_pd(sign_bit, along_normal), slack);
+      const __m256d near_plane =
+          _mm256_cmp_pd(_mm256_mul_pd(height, shrink), _mm256_set1_pd(best), _CMP_NGE_UQ);
+      int pass = _mm256_movemask_pd(_mm256_and_pd(near_sphere, near_plane)) & ((1 << count) - 1);
+      while (pass != 0) {
+        const int k = __builtin_ctz(unsigned(pass));
+        pass &= pass - 1;
+        if (tests.add(p, corners[ids[k]], ids[k], best_squared, best_triangle, &closest)) best = std::sqrt(best_squared);
+      }
+    }
+    if (stop) break;
+  }
+  tests.run(p, best_squared, best_triangle, &closest);
+}
+
+void scanPointListCached(const Vec& p, const PointListCache& list, const MeshModel& geometry, double& best_squared,
+                         int& best_triangle, Vec& closest) {
+  constexpr double kShrink = 1 - 1e-12;
+  const std::array<Vec, 3>* corners = geometry.corners.data();
+  PendingTriangleTests tests;
+  tests.four = &pointTriangleSquaredDistances4;
+  double best = std::sqrt(best_squared);
+  const double scale = std::abs(p.x()) + std::abs(p.y()) + std::abs(p.z());
+  const __m256d px = _mm256_set1_pd(p.x()), py = _mm256_set1_pd(p.y()), pz = _mm256_set1_pd(p.z());
+  const __m256d shrink = _mm256_set1_pd(kShrink);
+  const __m256d slack_scale = _mm256_set1_pd(scale);
+  const __m256d slack_unit = _mm256_set1_pd(1e-13);
+  const __m256d sign_bit = _mm256_set1_pd(-0.0);
+  const double* block = list.lanes.data();
+  const std::int32_t* ids = list.ids.data();
+  const std::uint32_t blocks = (list.length + 3) / 4;
+  for (std::uint32_t b = 0; b < blocks; ++b, block += PointListCache::kBlock, ids += 4) {
+    // The block's entries before the first whose bound reaches the best (as scanPointList).
+    const int stop = _mm256_movemask_pd(_mm256_cmp_pd(_mm256_loadu_pd(block), _mm256_set1_pd(best_squared), _CMP_GE_OQ));
+    const int count = stop ? __builtin_ctz(unsigned(stop)) : 4;
+    if (count > 0) {
+      const __m256d cx = _mm256_loadu_pd(block + 4), cy = _mm256_loadu_pd(block + 8);
+      const __m256d cz = _mm256_loadu_pd(block + 12), r = _mm256_loadu_pd(block + 16);
+      const __m256d nx = _mm256_loadu_pd(block + 20), ny = _mm256_loadu_pd(block + 24);
+      const __m256d nz = _mm256_loadu_pd(block + 28), w = _mm256_loadu_pd(block + 32);
+      const Lanes3 offset = sub({px, py, pz}, {cx, cy, cz});
+      const __m256d reach_squared = dot(offset, offset);
+      const __m256d rim = _mm256_add_pd(r, _mm256_set1_pd(best));
+      const __m256d near_sphere =
+          _mm256_cmp_pd(_mm256_mul_pd(reach_squared, shrink), _mm256_mul_pd(rim, rim), _CMP_NGE_UQ);
+      const __m256d along_normal = _mm256_sub_pd(dot({nx, ny, nz}, {px, py, pz}), w);
+      const __m256d slack =
+          _mm256_mul_pd(slack_unit, _mm256_add_pd(_mm256_add_pd(slack_scale, _mm256_andnot_pd(sign_bit, w)), r));
+      const __m256d height = _mm256_sub_pd(_mm256_andnot_pd(sign_bit, along_normal), slack);
+      const __m256d near_plane =
+          _mm256_cmp_pd(_mm256_mul_pd(height, shrink), _mm256_set1_pd(best), _CMP_NGE_UQ);
+      int pass = _mm256_movemask_pd(_mm256_and_pd(near_sphere, near_plane)) & ((1 << count) - 1);
+      while (pass != 0) {
+        const int k = __builtin_ctz(unsigned(pass));
+        pass &= pass - 1;
+        if (tests.add(p, corners[ids[k]], ids[k], best_squared, best_triangle, &closest)) best = std::sqrt(best_squared);
+      }
+    }
+    if (stop) break;
+  }
+  tests.run(p, best_squared, best_triangle, &closest);
+}
+
 }  // namespace cfl::detail::x86_64_v3
 
 #pragma GCC pop_options

@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 namespace cfl::detail {
 
@@ -168,6 +169,32 @@ struct PendingTriangleTests {
     count = 0;
     return improved;
   }
+};
+
+/// A closest feature list as the point query scans it (see RegionTree): entry n is triangle base + low[n],
+/// or low[n] | high[n] << 16 when high is set (a wide list); bounds[n] * unit (unit shrunk for rounding)
+/// bounds its distance from below, ascending.
+struct PointListScan {
+  const std::uint16_t* low;
+  const std::uint16_t* high;
+  std::int32_t base;
+  const std::uint8_t* bounds;
+  std::uint32_t length;
+  double unit;
+};
+
+/// One leaf's closest feature list laid out for scanPointListCached: consecutive points of a batch (Morton
+/// order) mostly fall in the leaf of the point before, and their scans then read the entries' bounds, spheres
+/// and planes as contiguous lanes instead of gathering them by triangle id. Blocks of four entries, each
+/// kBlock doubles: the squared entry bounds, then the spheres' x, y, z and radius, then the planes' x, y, z
+/// and offset, four lanes each. The last block is padded with infinite bounds, which end every scan.
+struct PointListCache {
+  static constexpr int kBlock = 36;
+  static constexpr std::uint32_t kNoLeaf = 0xffffffffu;
+  std::uint32_t leaf = kNoLeaf;
+  std::uint32_t length = 0;
+  std::vector<double> lanes;
+  std::vector<std::int32_t> ids;  // padded as the lanes, with the first entry's id
 };
 
 /// nearestTriangleCompact with each triangle of a leaf first bounded by its own sphere and plane

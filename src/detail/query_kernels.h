@@ -99,5 +99,15 @@ bool trianglesIntersect(const Eigen::Vector3d p[3], const Eigen::Vector3d q[3], 
 // a batch of candidates costs about one scalar test.
 void pointTriangleSquaredDistances4(const Eigen::Vector3d& p, const std::array<Eigen::Vector3d, 3>* const triangles[4],
                                     double squared[4], Eigen::Vector3d closest[4]);
+
+// The point query's scan of a closest feature list, its bounds four entries at a time and its exact tests
+// through pointTriangleSquaredDistances4: the same contract and answer, ties included, as the generic scan
+// in point_query.cpp (best_squared, best_triangle and closest are the best so far on entry, the list's best
+// strictly below it on exit).
+void scanPointList(const Eigen::Vector3d& p, const PointListScan& list, const MeshModel& geometry,
+                   double& best_squared, int& best_triangle, Eigen::Vector3d& closest);
+// scanPointList on a list laid out in a PointListCache: the same answer.
+void scanPointListCached(const Eigen::Vector3d& p, const PointListCache& list, const MeshModel& geometry,
+                         double& best_squared, int& best_triangle, Eigen::Vector3d& closest);
 }  // namespace cfl::detail::x86_64_v3
 #endif

@@ -172,6 +172,12 @@ void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, do
   const std::size_t leaves = geometry.bvh.triangle_ids.size();
   if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.leaf_corners.size() == leaves &&
       geometry.leaf_spheres.size() == leaves && geometry.leaf_planes.size() == leaves) {
+#if CFL_X86_64_V3_KERNELS
+    if (four != nullptr) {
+      detail::x86_64_v3::nearestTriangleBounded(geometry, p, best_squared, best_triangle, closest);
+      return;
+    }
+#endif
     detail::nearestTriangleCompactBounded(geometry, p, best_squared, best_triangle, closest, four);
   } else if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.leaf_corners.size() == leaves) {
     detail::nearestTriangleCompact(geometry, p, best_squared, best_triangle, closest);
@@ -182,29 +188,6 @@ void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, do
 
 // The closest triangle to p_M strictly within sqrt(best_squared) (the entry value), through the point's leaf
 // when it lies in the regions and has a list, else through the Bvh. best_triangle stays -1 when there is none.
-// Lays out list `list` of `leaf` (its entry bounds and unit as searchNearest reads them) in `cache`.
-void fillListCache(const CflModel& model, std::uint32_t leaf, std::uint32_t list, std::uint32_t length,
-                   const std::uint8_t* bounds, double unit, detail::PointListCache& cache) {
-  constexpr int kBlock = detail::PointListCache::kBlock;
-  const std::uint32_t padded = (length + 3) / 4 * 4;
-  cache.leaf = leaf;
-  cache.length = length;
-  cache.lanes.resize(std::size_t(padded / 4) * kBlock);
-  cache.ids.resize(padded);
-  model.regions.forEachListTriangle(list, length, [&](std::ptrdiff_t n, std::int32_t t) { cache.ids[n] = t; });
-  const auto& spheres = model.geometry.spheres;
-  const auto& planes = model.geometry.planes;
-  for (std::uint32_t n = 0; n < padded; ++n) {
-    double* block = cache.lanes.data() + std::size_t(n / 4) * kBlock + n % 4;
-    if (n >= length) cache.ids[n] = cache.ids[0];
-    const std::int32_t t = cache.ids[n];
-    const double bound = n < length ? double(bounds[n]) * unit : 0.0;
-    block[0] = n < length ? bound * bound : std::numeric_limits<double>::infinity();
-    for (int k = 0; k < 4; ++k) block[4 + 4 * k] = spheres[t][k];
-    for (int k = 0; k < 4; ++k) block[20 + 4 * k] = planes[t][k];
-  }
-}
-
 void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& best_squared, int& best_triangle,
                    Eigen::Vector3d& closest, detail::PointTriangles4 four, detail::PointListCache* cache) {
   const RegionTree& regions = model.regions;
@@ -222,8 +205,21 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       const std::uint8_t* bounds = regions.listBoundsBegin(cell.leaf);
       const double unit = regions.entryBoundUnit(cell.depth) * kBoundShrink;
 #if CFL_X86_64_V3_KERNELS
-      if (four != nullptr && cache != nullptr) {
-        if (cache->leaf != cell.leaf) fillListCache(model, cell.leaf, list, length, bounds, unit, *cache);
+      if (four != nullptr && cache != nullptr && length > 0) {
+        if (cache->leaf != cell.leaf) {
+          // A new leaf: its list's blocks are laid out as scans reach them.
+          const std::int32_t base = regions.listBase(list);
+          const std::uint16_t* low = regions.list_entry_ids.data() + regions.listIdsBegin(list) + 2;
+          cache->source = {low, base >= 0 ? nullptr : regions.list_high_ids.data() + std::uint32_t(~base), base, bounds,
+                           length, unit};
+          cache->leaf = cell.leaf;
+          cache->filled = 0;
+          const std::size_t blocks = (length + 3) / 4;
+          if (cache->ids.size() < 4 * blocks) {
+            cache->ids.resize(4 * blocks);
+            cache->lanes.resize(blocks * detail::PointListCache::kBlock);
+          }
+        }
         detail::x86_64_v3::scanPointListCached(p_M, *cache, model.geometry, best_squared, best_triangle, closest);
         return;
       }

@@ -213,7 +213,42 @@ void scanPointList(const Vec& p, const PointListScan& list, const MeshModel& geo
   tests.run(p, best_squared, best_triangle, &closest);
 }
 
-void scanPointListCached(const Vec& p, const PointListCache& list, const MeshModel& geometry, double& best_squared,
+namespace {
+
+// Lays out block b of the cached list (see PointListCache).
+void fillBlock(PointListCache& cache, const MeshModel& geometry, std::uint32_t b) {
+  const PointListScan& list = cache.source;
+  std::int32_t* ids = cache.ids.data() + 4 * std::size_t(b);
+  double* block = cache.lanes.data() + std::size_t(b) * PointListCache::kBlock;
+  const std::uint32_t first = 4 * b;
+  const std::uint32_t count = std::min<std::uint32_t>(4, list.length - first);
+  for (std::uint32_t k = 0; k < 4; ++k) {
+    // Lanes past the list repeat its last entry, behind an infinite bound.
+    const std::uint32_t n = first + std::min(k, count - 1);
+    ids[k] = list.high ? std::int32_t(std::uint32_t(list.low[n]) | std::uint32_t(list.high[n]) << 16)
+                       : list.base + std::int32_t(list.low[n]);
+    const double bound = double(list.bounds[n]) * list.unit;
+    block[k] = k < count ? bound * bound : std::numeric_limits<double>::infinity();
+  }
+  __m256d cx = _mm256_loadu_pd(geometry.spheres[ids[0]].data()), cy = _mm256_loadu_pd(geometry.spheres[ids[1]].data());
+  __m256d cz = _mm256_loadu_pd(geometry.spheres[ids[2]].data()), r = _mm256_loadu_pd(geometry.spheres[ids[3]].data());
+  transpose(cx, cy, cz, r);
+  __m256d nx = _mm256_loadu_pd(geometry.planes[ids[0]].data()), ny = _mm256_loadu_pd(geometry.planes[ids[1]].data());
+  __m256d nz = _mm256_loadu_pd(geometry.planes[ids[2]].data()), w = _mm256_loadu_pd(geometry.planes[ids[3]].data());
+  transpose(nx, ny, nz, w);
+  _mm256_storeu_pd(block + 4, cx);
+  _mm256_storeu_pd(block + 8, cy);
+  _mm256_storeu_pd(block + 12, cz);
+  _mm256_storeu_pd(block + 16, r);
+  _mm256_storeu_pd(block + 20, nx);
+  _mm256_storeu_pd(block + 24, ny);
+  _mm256_storeu_pd(block + 28, nz);
+  _mm256_storeu_pd(block + 32, w);
+}
+
+}  // namespace
+
+void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& geometry, double& best_squared,
                          int& best_triangle, Vec& closest) {
   constexpr double kShrink = 1 - 1e-12;
   const std::array<Vec, 3>* corners = geometry.corners.data();
@@ -226,10 +261,11 @@ void scanPointListCached(const Vec& p, const PointListCache& list, const MeshMod
   const __m256d slack_scale = _mm256_set1_pd(scale);
   const __m256d slack_unit = _mm256_set1_pd(1e-13);
   const __m256d sign_bit = _mm256_set1_pd(-0.0);
-  const double* block = list.lanes.data();
-  const std::int32_t* ids = list.ids.data();
-  const std::uint32_t blocks = (list.length + 3) / 4;
-  for (std::uint32_t b = 0; b < blocks; ++b, block += PointListCache::kBlock, ids += 4) {
+  const std::uint32_t blocks = (list.source.length + 3) / 4;
+  for (std::uint32_t b = 0; b < blocks; ++b) {
+    if (b == list.filled) fillBlock(list, geometry, list.filled++);
+    const double* block = list.lanes.data() + std::size_t(b) * PointListCache::kBlock;
+    const std::int32_t* ids = list.ids.data() + 4 * std::size_t(b);
     // The block's entries before the first whose bound reaches the best (as scanPointList).
     const int stop = _mm256_movemask_pd(_mm256_cmp_pd(_mm256_loadu_pd(block), _mm256_set1_pd(best_squared), _CMP_GE_OQ));
     const int count = stop ? __builtin_ctz(unsigned(stop)) : 4;
@@ -259,6 +295,87 @@ void scanPointListCached(const Vec& p, const PointListCache& list, const MeshMod
     if (stop) break;
   }
   tests.run(p, best_squared, best_triangle, &closest);
+}
+
+void nearestTriangleBounded(const MeshModel& model, const Vec& p, double& best_squared, int& best_triangle,
+                            Vec* closest) {
+  constexpr double kShrink = 1 - 1e-12;
+  const auto& nodes = model.compact_nodes;
+  if (nodes.empty()) return;
+  const auto boxSquared = [&p](const CompactBvhNode& node) {
+    double sum = 0;
+    for (int axis = 0; axis < 3; ++axis) {
+      const double gap = std::max(double(node.min[axis]) - p[axis], 0.0) + std::max(p[axis] - double(node.max[axis]), 0.0);
+      sum += gap * gap;
+    }
+    return sum;
+  };
+  struct Pending {
+    double bound;
+    int node;
+  };
+  Pending stack[128];
+  int top = 0;
+  stack[top++] = {boxSquared(nodes[0]), 0};
+  double best = std::sqrt(best_squared);
+  const double scale = std::abs(p.x()) + std::abs(p.y()) + std::abs(p.z());
+  const __m256d px = _mm256_set1_pd(p.x()), py = _mm256_set1_pd(p.y()), pz = _mm256_set1_pd(p.z());
+  const __m256d shrink = _mm256_set1_pd(kShrink);
+  const __m256d slack_scale = _mm256_set1_pd(scale);
+  const __m256d slack_unit = _mm256_set1_pd(1e-13);
+  const __m256d sign_bit = _mm256_set1_pd(-0.0);
+  const Eigen::Vector4d* spheres = model.leaf_spheres.data();
+  const Eigen::Vector4d* planes = model.leaf_planes.data();
+  PendingTriangleTests tests;
+  tests.four = &pointTriangleSquaredDistances4;
+  while (top > 0) {
+    const Pending pending = stack[--top];
+    if (pending.bound > best_squared) continue;
+    const CompactBvhNode& node = nodes[pending.node];
+    if (node.count > 0) {
+      const int end = node.first + node.count;
+      for (int i = node.first; i < end; i += 4) {
+        // Lanes past the leaf repeat its last triangle and are masked off.
+        const int lanes = std::min(4, end - i);
+        const int j1 = i + std::min(1, lanes - 1), j2 = i + std::min(2, lanes - 1), j3 = i + std::min(3, lanes - 1);
+        __m256d cx = _mm256_loadu_pd(spheres[i].data()), cy = _mm256_loadu_pd(spheres[j1].data());
+        __m256d cz = _mm256_loadu_pd(spheres[j2].data()), r = _mm256_loadu_pd(spheres[j3].data());
+        transpose(cx, cy, cz, r);
+        __m256d nx = _mm256_loadu_pd(planes[i].data()), ny = _mm256_loadu_pd(planes[j1].data());
+        __m256d nz = _mm256_loadu_pd(planes[j2].data()), w = _mm256_loadu_pd(planes[j3].data());
+        transpose(nx, ny, nz, w);
+        const Lanes3 offset = sub({px, py, pz}, {cx, cy, cz});
+        const __m256d reach_squared = dot(offset, offset);
+        const __m256d rim = _mm256_add_pd(r, _mm256_set1_pd(best));
+        const __m256d near_sphere =
+            _mm256_cmp_pd(_mm256_mul_pd(reach_squared, shrink), _mm256_mul_pd(rim, rim), _CMP_NGE_UQ);
+        const __m256d along_normal = _mm256_sub_pd(dot({nx, ny, nz}, {px, py, pz}), w);
+        const __m256d slack =
+            _mm256_mul_pd(slack_unit, _mm256_add_pd(_mm256_add_pd(slack_scale, _mm256_andnot_pd(sign_bit, w)), r));
+        const __m256d height = _mm256_sub_pd(_mm256_andnot_pd(sign_bit, along_normal), slack);
+        const __m256d near_plane = _mm256_cmp_pd(_mm256_mul_pd(height, shrink), _mm256_set1_pd(best), _CMP_NGE_UQ);
+        int pass = _mm256_movemask_pd(_mm256_and_pd(near_sphere, near_plane)) & ((1 << lanes) - 1);
+        while (pass != 0) {
+          const int k = __builtin_ctz(unsigned(pass));
+          pass &= pass - 1;
+          if (tests.add(p, model.leaf_corners[i + k], model.bvh.triangle_ids[i + k], best_squared, best_triangle,
+                        closest)) {
+            best = std::sqrt(best_squared);
+          }
+        }
+      }
+      // The batch runs before the walk goes on: the nodes' bounds compare with the best.
+      if (tests.run(p, best_squared, best_triangle, closest)) best = std::sqrt(best_squared);
+      continue;
+    }
+    const double d_left = boxSquared(nodes[node.first]);
+    const double d_right = boxSquared(nodes[node.first + 1]);
+    const bool left_first = d_left <= d_right;
+    const double d_far = left_first ? d_right : d_left;
+    const double d_near = left_first ? d_left : d_right;
+    if (d_far <= best_squared) stack[top++] = {d_far, left_first ? node.first + 1 : node.first};
+    if (d_near <= best_squared) stack[top++] = {d_near, left_first ? node.first : node.first + 1};
+  }
 }
 
 }  // namespace cfl::detail::x86_64_v3

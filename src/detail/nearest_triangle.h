@@ -187,14 +187,16 @@ struct PointListScan {
 /// order) mostly fall in the leaf of the point before, and their scans then read the entries' bounds, spheres
 /// and planes as contiguous lanes instead of gathering them by triangle id. Blocks of four entries, each
 /// kBlock doubles: the squared entry bounds, then the spheres' x, y, z and radius, then the planes' x, y, z
-/// and offset, four lanes each. The last block is padded with infinite bounds, which end every scan.
+/// and offset, four lanes each. The last block is padded with infinite bounds, which end every scan. Blocks
+/// are laid out as scans first reach them (`filled` so far): most scans end well before the list does.
 struct PointListCache {
   static constexpr int kBlock = 36;
   static constexpr std::uint32_t kNoLeaf = 0xffffffffu;
   std::uint32_t leaf = kNoLeaf;
-  std::uint32_t length = 0;
+  PointListScan source{};
+  std::uint32_t filled = 0;
   std::vector<double> lanes;
-  std::vector<std::int32_t> ids;  // padded as the lanes, with the first entry's id
+  std::vector<std::int32_t> ids;  // padded as the lanes, with the last entry's id
 };
 
 /// nearestTriangleCompact with each triangle of a leaf first bounded by its own sphere and plane

@@ -106,8 +106,13 @@ void pointTriangleSquaredDistances4(const Eigen::Vector3d& p, const std::array<E
 // strictly below it on exit).
 void scanPointList(const Eigen::Vector3d& p, const PointListScan& list, const MeshModel& geometry,
                    double& best_squared, int& best_triangle, Eigen::Vector3d& closest);
-// scanPointList on a list laid out in a PointListCache: the same answer.
-void scanPointListCached(const Eigen::Vector3d& p, const PointListCache& list, const MeshModel& geometry,
+// nearestTriangleCompactBounded (detail/nearest_triangle.h) with each leaf's sphere and plane bounds four
+// triangles at a time and the exact tests through pointTriangleSquaredDistances4: the same answer.
+void nearestTriangleBounded(const MeshModel& model, const Eigen::Vector3d& p, double& best_squared, int& best_triangle,
+                            Eigen::Vector3d* closest);
+// scanPointList on a list laid out in a PointListCache (blocks laid out as the scan reaches them): the same
+// answer.
+void scanPointListCached(const Eigen::Vector3d& p, PointListCache& list, const MeshModel& geometry,
                          double& best_squared, int& best_triangle, Eigen::Vector3d& closest);
 }  // namespace cfl::detail::x86_64_v3
 #endif

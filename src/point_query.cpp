@@ -188,8 +188,10 @@ void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, do
 
 // The closest triangle to p_M strictly within sqrt(best_squared) (the entry value), through the point's leaf
 // when it lies in the regions and has a list, else through the Bvh. best_triangle stays -1 when there is none.
+// `hint_triangle`: a triangle likely to be nearly as close as the closest (a nearby point's), or -1.
 void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& best_squared, int& best_triangle,
-                   Eigen::Vector3d& closest, detail::PointTriangles4 four, detail::PointListCache* cache) {
+                   Eigen::Vector3d& closest, detail::PointTriangles4 four, detail::PointListCache* cache,
+                   int hint_triangle = -1) {
   const RegionTree& regions = model.regions;
   const Aabb box = regions.bounds();
   const bool inside = !regions.nodes.empty() && (p_M.array() >= box.min.array()).all() &&
@@ -277,10 +279,18 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       promise = std::min(promise, double(corner_distance[c]) * (1 + 1e-6) + (p_M - corner).norm());
     }
     promise *= 1 + 1e-9;
+    double seed_squared = promise * promise;
+    if (hint_triangle >= 0) {
+      // A nearby point's closest triangle is at most a little farther than this point's closest: its exact
+      // distance, barely inflated, is a tighter seed than a loose promise (a big leaf far from the mesh).
+      // Above the closest distance whenever it is positive, it leaves the walk's answer as it was.
+      const auto& c = model.geometry.corners[hint_triangle];
+      seed_squared = std::min(seed_squared, pointTriangleSquaredDistance(p_M, c[0], c[1], c[2]) * (1 + 1e-9));
+    }
     // No list: the Bvh answers, seeded with the promise, so that the walk skips every node farther (for a
     // point deep inside a solid or far above a flat part, most of the tree).
-    if (promise * promise < best_squared) {
-      double found_squared = promise * promise;
+    if (seed_squared < best_squared) {
+      double found_squared = seed_squared;
       int found = -1;
       Eigen::Vector3d q;
       nearestTriangleFast(model.geometry, p_M, found_squared, found, &q, four);
@@ -305,13 +315,13 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
 // under the closest), and then the plain search runs.
 void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
                        int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four,
-                       detail::PointListCache* cache) {
+                       detail::PointListCache* cache, int hint_triangle) {
   const double seed = hint_squared * (1 + 1e-9);
   if (seed > 0 && seed < best_squared) {
     double found_squared = seed;
     int found = -1;
     Eigen::Vector3d q;
-    searchNearest(model, p_M, found_squared, found, q, four, cache);
+    searchNearest(model, p_M, found_squared, found, q, four, cache, hint_triangle);
     if (found >= 0) {
       best_squared = found_squared;
       best_triangle = found;
@@ -319,7 +329,7 @@ void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::
       return;
     }
   }
-  searchNearest(model, p_M, best_squared, best_triangle, closest, four, cache);
+  searchNearest(model, p_M, best_squared, best_triangle, closest, four, cache, hint_triangle);
 }
 
 // Which feature of triangle (a, b, c) holds the point closest to p: 0 the face, 1 + e edge e (corners e and
@@ -420,13 +430,13 @@ void validatePoint(const Eigen::Vector3d& p_W, const char* what) {
 PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p_W,
                             const PointQueryOptions& options, detail::PointTriangles4 four,
                             detail::PointListCache* cache = nullptr,
-                            double hint_squared = std::numeric_limits<double>::infinity()) {
+                            double hint_squared = std::numeric_limits<double>::infinity(), int hint_triangle = -1) {
   const Eigen::Vector3d p_M = X_WM.inverse(Eigen::Isometry) * p_W;
   const double infinity = std::numeric_limits<double>::infinity();
   double best_squared = std::isinf(options.upper_bound) ? infinity : options.upper_bound * options.upper_bound;
   int triangle = -1;
   Eigen::Vector3d closest_M = Eigen::Vector3d::Zero();
-  searchNearestFrom(model, hint_squared, p_M, best_squared, triangle, closest_M, four, cache);
+  searchNearestFrom(model, hint_squared, p_M, best_squared, triangle, closest_M, four, cache, hint_triangle);
   double distance = triangle >= 0 ? std::sqrt(best_squared) : infinity;
   if (triangle >= 0 && !(distance < options.upper_bound)) triangle = -1, distance = infinity;  // rounding at the bound
 
@@ -525,6 +535,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
       detail::PointListCache cache;
       double previous = std::numeric_limits<double>::infinity();
       Eigen::Vector3d previous_W = Eigen::Vector3d::Zero();
+      int previous_triangle = -1;
       // The caller's arrays are read and written out of order: each point and result its own cache miss,
       // fetched ahead.
       constexpr std::size_t kAhead = 8;  // queries ahead: several hundred cycles, time for a miss to land
@@ -538,9 +549,10 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
         }
         const std::size_t i = ordered[j];
         const double hint = previous + (points_W[i] - previous_W).norm();
-        results[i] = pointDistance(model, X_WM, points_W[i], options, four, &cache, hint * hint);
+        results[i] = pointDistance(model, X_WM, points_W[i], options, four, &cache, hint * hint, previous_triangle);
         previous = std::abs(results[i].distance);
         previous_W = points_W[i];
+        previous_triangle = results[i].triangle;
       }
       return;
     }

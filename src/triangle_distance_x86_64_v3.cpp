@@ -302,13 +302,21 @@ void nearestTriangleBounded(const MeshModel& model, const Vec& p, double& best_s
   constexpr double kShrink = 1 - 1e-12;
   const auto& nodes = model.compact_nodes;
   if (nodes.empty()) return;
-  const auto boxSquared = [&p](const CompactBvhNode& node) {
-    double sum = 0;
-    for (int axis = 0; axis < 3; ++axis) {
-      const double gap = std::max(double(node.min[axis]) - p[axis], 0.0) + std::max(p[axis] - double(node.max[axis]), 0.0);
-      sum += gap * gap;
-    }
-    return sum;
+  // nearestTriangleCompactBounded's box distance with the three axes in lanes: the same sums in the same
+  // order, (x^2 + y^2) + z^2, so the same children order and the same walk. (A gap of -0 here may be +0
+  // there; squared, both are +0.) The fourth lane, the node's link read as a float, is dropped.
+  const __m256d point = _mm256_set_pd(0.0, p.z(), p.y(), p.x());
+  const __m256d xyz = _mm256_castsi256_pd(_mm256_set_epi64x(0, -1, -1, -1));
+  const auto boxSquared = [&](const CompactBvhNode& node) {
+    const __m256d low = _mm256_cvtps_pd(_mm_loadu_ps(node.min));
+    const __m256d high = _mm256_cvtps_pd(_mm_loadu_ps(node.max));
+    const __m256d zero = _mm256_setzero_pd();
+    const __m256d gap = _mm256_add_pd(_mm256_max_pd(_mm256_sub_pd(low, point), zero),
+                                      _mm256_max_pd(_mm256_sub_pd(point, high), zero));
+    const __m256d squared = _mm256_and_pd(_mm256_mul_pd(gap, gap), xyz);
+    const __m128d xy = _mm256_castpd256_pd128(squared);
+    const __m128d z = _mm256_extractf128_pd(squared, 1);
+    return _mm_cvtsd_f64(_mm_add_sd(_mm_add_sd(xy, _mm_unpackhi_pd(xy, xy)), z));
   };
   struct Pending {
     double bound;

@@ -9,6 +9,7 @@
 #include "detail/exact_arithmetic.h"
 #include "detail/nearest_triangle.h"
 #include "detail/parallel_chunks.h"
+#include "detail/query_kernels.h"
 
 #include <algorithm>
 #include <array>
@@ -167,9 +168,18 @@ std::vector<std::uint32_t> spatialOrder(const CflModel& model, const Eigen::Isom
 // The Bvh walk: on the compact nodes when the model has them (makeMeshModel builds them; a MeshModel put
 // together by hand may not).
 void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, double& best_squared, int& best_triangle,
-                         Eigen::Vector3d* closest) {
-  if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() &&
-      geometry.leaf_corners.size() == geometry.bvh.triangle_ids.size()) {
+                         Eigen::Vector3d* closest, detail::PointTriangles4 four) {
+  const std::size_t leaves = geometry.bvh.triangle_ids.size();
+  if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.leaf_corners.size() == leaves &&
+      geometry.leaf_spheres.size() == leaves && geometry.leaf_planes.size() == leaves) {
+#if CFL_X86_64_V3_KERNELS
+    if (four != nullptr) {
+      detail::x86_64_v3::nearestTriangleBounded(geometry, p, best_squared, best_triangle, closest);
+      return;
+    }
+#endif
+    detail::nearestTriangleCompactBounded(geometry, p, best_squared, best_triangle, closest, four);
+  } else if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.leaf_corners.size() == leaves) {
     detail::nearestTriangleCompact(geometry, p, best_squared, best_triangle, closest);
   } else {
     detail::nearestTriangle(geometry, p, best_squared, best_triangle, closest);
@@ -178,8 +188,10 @@ void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, do
 
 // The closest triangle to p_M strictly within sqrt(best_squared) (the entry value), through the point's leaf
 // when it lies in the regions and has a list, else through the Bvh. best_triangle stays -1 when there is none.
+// `hint_triangle`: a triangle likely to be nearly as close as the closest (a nearby point's), or -1.
 void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& best_squared, int& best_triangle,
-                   Eigen::Vector3d& closest) {
+                   Eigen::Vector3d& closest, detail::PointTriangles4 four, detail::PointListCache* cache,
+                   int hint_triangle = -1) {
   const RegionTree& regions = model.regions;
   const Aabb box = regions.bounds();
   const bool inside = !regions.nodes.empty() && (p_M.array() >= box.min.array()).all() &&
@@ -194,6 +206,35 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       const std::uint32_t length = regions.listLength(list);
       const std::uint8_t* bounds = regions.listBoundsBegin(cell.leaf);
       const double unit = regions.entryBoundUnit(cell.depth) * kBoundShrink;
+#if CFL_X86_64_V3_KERNELS
+      if (four != nullptr && cache != nullptr && length > 0) {
+        if (cache->leaf != cell.leaf) {
+          // A new leaf: its list's blocks are laid out as scans reach them.
+          const std::int32_t base = regions.listBase(list);
+          const std::uint16_t* low = regions.list_entry_ids.data() + regions.listIdsBegin(list) + 2;
+          cache->source = {low, base >= 0 ? nullptr : regions.list_high_ids.data() + std::uint32_t(~base), base, bounds,
+                           length, unit};
+          cache->leaf = cell.leaf;
+          cache->filled = 0;
+          const std::size_t blocks = (length + 3) / 4;
+          if (cache->ids.size() < 4 * blocks) {
+            cache->ids.resize(4 * blocks);
+            cache->lanes.resize(blocks * detail::PointListCache::kBlock);
+          }
+        }
+        detail::x86_64_v3::scanPointListCached(p_M, *cache, model.geometry, best_squared, best_triangle, closest);
+        return;
+      }
+      if (four != nullptr) {
+        // The x86-64-v3 build's scan: the same bounds four entries at a time, the same answer.
+        const std::int32_t base = regions.listBase(list);
+        const std::uint16_t* low = regions.list_entry_ids.data() + regions.listIdsBegin(list) + 2;
+        const detail::PointListScan scan{low, base >= 0 ? nullptr : regions.list_high_ids.data() + std::uint32_t(~base),
+                                         base, bounds, length, unit};
+        detail::x86_64_v3::scanPointList(p_M, scan, model.geometry, best_squared, best_triangle, closest);
+        return;
+      }
+#endif
       const auto& corners = model.geometry.corners;
       const auto& spheres = model.geometry.spheres;
       const auto& planes = model.geometry.planes;
@@ -203,6 +244,8 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       // The plane bound's rounding: the products n . p and the offset round at the scale of the
       // coordinates, and the corners sit off the plane by a few ulps of the triangle's size.
       const double scale = p_M.cwiseAbs().sum();
+      detail::PendingTriangleTests tests;
+      tests.four = four;
       for (std::uint32_t n = 0; n < length; ++n, ++bounds) {
         // Entries are sorted by bound: once one reaches the best distance, none after it can beat it.
         const double bound = double(*bounds) * unit;
@@ -219,16 +262,9 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
         const double height = std::abs(plane.head<3>().dot(p_M) - plane[3]) -
                               1e-13 * (scale + std::abs(plane[3]) + sphere[3]);
         if (height * kBoundShrink >= best) continue;
-        const auto& c = corners[t];
-        Eigen::Vector3d q;
-        const double d = pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
-        if (d < best_squared) {
-          best_squared = d;
-          best_triangle = t;
-          closest = q;
-          best = std::sqrt(d);
-        }
+        if (tests.add(p_M, corners[t], t, best_squared, best_triangle, &closest)) best = std::sqrt(best_squared);
       }
+      tests.run(p_M, best_squared, best_triangle, &closest);
       return;
     }
     // The leaf's corner distances promise a triangle within (corner distance + |p - corner|) of p, distance
@@ -243,13 +279,21 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       promise = std::min(promise, double(corner_distance[c]) * (1 + 1e-6) + (p_M - corner).norm());
     }
     promise *= 1 + 1e-9;
+    double seed_squared = promise * promise;
+    if (hint_triangle >= 0) {
+      // A nearby point's closest triangle is at most a little farther than this point's closest: its exact
+      // distance, barely inflated, is a tighter seed than a loose promise (a big leaf far from the mesh).
+      // Above the closest distance whenever it is positive, it leaves the walk's answer as it was.
+      const auto& c = model.geometry.corners[hint_triangle];
+      seed_squared = std::min(seed_squared, pointTriangleSquaredDistance(p_M, c[0], c[1], c[2]) * (1 + 1e-9));
+    }
     // No list: the Bvh answers, seeded with the promise, so that the walk skips every node farther (for a
     // point deep inside a solid or far above a flat part, most of the tree).
-    if (promise * promise < best_squared) {
-      double found_squared = promise * promise;
+    if (seed_squared < best_squared) {
+      double found_squared = seed_squared;
       int found = -1;
       Eigen::Vector3d q;
-      nearestTriangleFast(model.geometry, p_M, found_squared, found, &q);
+      nearestTriangleFast(model.geometry, p_M, found_squared, found, &q, four);
       if (found >= 0) {
         best_squared = found_squared;
         best_triangle = found;
@@ -259,7 +303,7 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       // Unreachable unless a corner distance were wrong: the unseeded walk below stays exact regardless.
     }
   }
-  nearestTriangleFast(model.geometry, p_M, best_squared, best_triangle, &closest);
+  nearestTriangleFast(model.geometry, p_M, best_squared, best_triangle, &closest, four);
 }
 
 // searchNearest with a hint: `hint_squared` (or infinity), a bound that is likely to be a little above the
@@ -270,13 +314,14 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
 // that distance leaves that triangle in), unless nothing lies below the bound (rounding put it a hair
 // under the closest), and then the plain search runs.
 void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
-                       int& best_triangle, Eigen::Vector3d& closest) {
+                       int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four,
+                       detail::PointListCache* cache, int hint_triangle) {
   const double seed = hint_squared * (1 + 1e-9);
   if (seed > 0 && seed < best_squared) {
     double found_squared = seed;
     int found = -1;
     Eigen::Vector3d q;
-    searchNearest(model, p_M, found_squared, found, q);
+    searchNearest(model, p_M, found_squared, found, q, four, cache, hint_triangle);
     if (found >= 0) {
       best_squared = found_squared;
       best_triangle = found;
@@ -284,7 +329,7 @@ void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::
       return;
     }
   }
-  searchNearest(model, p_M, best_squared, best_triangle, closest);
+  searchNearest(model, p_M, best_squared, best_triangle, closest, four, cache, hint_triangle);
 }
 
 // Which feature of triangle (a, b, c) holds the point closest to p: 0 the face, 1 + e edge e (corners e and
@@ -344,6 +389,15 @@ Eigen::Vector3d pseudonormal(const CflModel& model, int t, const Eigen::Vector3d
   return sign.vertex_normals[sign.welded_vertex[geometry.mesh.triangles[t][k]]];
 }
 
+// The exact tests' four-triangle kernel of the query build in use (cfl/query_kernels.h), nullptr in the
+// generic build: both give the same bits.
+detail::PointTriangles4 fourTriangleKernel() {
+#if CFL_X86_64_V3_KERNELS
+  if (activeQueryKernels() == QueryKernels::kX86_64_V3) return &detail::x86_64_v3::pointTriangleSquaredDistances4;
+#endif
+  return nullptr;
+}
+
 void validateOptions(const CflModel& model, const PointQueryOptions& options) {
   if (!(options.upper_bound >= 0)) {
     std::ostringstream message;
@@ -374,14 +428,15 @@ void validatePoint(const Eigen::Vector3d& p_W, const char* what) {
 // The query proper, once pose, point and options are known to be good. `hint_squared`: see
 // searchNearestFrom.
 PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p_W,
-                            const PointQueryOptions& options,
-                            double hint_squared = std::numeric_limits<double>::infinity()) {
+                            const PointQueryOptions& options, detail::PointTriangles4 four,
+                            detail::PointListCache* cache = nullptr,
+                            double hint_squared = std::numeric_limits<double>::infinity(), int hint_triangle = -1) {
   const Eigen::Vector3d p_M = X_WM.inverse(Eigen::Isometry) * p_W;
   const double infinity = std::numeric_limits<double>::infinity();
   double best_squared = std::isinf(options.upper_bound) ? infinity : options.upper_bound * options.upper_bound;
   int triangle = -1;
   Eigen::Vector3d closest_M = Eigen::Vector3d::Zero();
-  searchNearestFrom(model, hint_squared, p_M, best_squared, triangle, closest_M);
+  searchNearestFrom(model, hint_squared, p_M, best_squared, triangle, closest_M, four, cache, hint_triangle);
   double distance = triangle >= 0 ? std::sqrt(best_squared) : infinity;
   if (triangle >= 0 && !(distance < options.upper_bound)) triangle = -1, distance = infinity;  // rounding at the bound
 
@@ -410,7 +465,7 @@ PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM
     double any_squared = infinity;
     int any_triangle = -1;
     Eigen::Vector3d any_closest = Eigen::Vector3d::Zero();
-    searchNearest(model, p_M, any_squared, any_triangle, any_closest);
+    searchNearest(model, p_M, any_squared, any_triangle, any_closest, four, cache);
     inside = any_triangle >= 0 && any_squared > 0 && pseudonormal(model, any_triangle, p_M).dot(p_M - any_closest) < 0;
   }
   if (triangle < 0) {
@@ -445,7 +500,7 @@ PointDistance computePointDistance(const CflModel& model, const Eigen::Isometry3
   validatePose(X_WM, "X_WM");
   validatePoint(p_W, "p_W");
   validateOptions(model, options);
-  return pointDistance(model, X_WM, p_W, options);
+  return pointDistance(model, X_WM, p_W, options, fourTriangleKernel());
 }
 
 void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d* points_W,
@@ -463,6 +518,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   }
   validateOptions(model, options);
   const int threads = batchThreadCount(options.threads, count);
+  const detail::PointTriangles4 four = fourTriangleKernel();
   // detail::parallelChunks, as computeDistances: each task writes only its own outputs, so they do not depend
   // on the schedule.
   auto inParallel = [&](std::size_t chunk, auto&& body) { detail::parallelChunks(count, threads, chunk, body); };
@@ -475,8 +531,11 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
       // Along the curve the previous point is close by: its distance plus the step, distance being
       // 1-Lipschitz, hints at this one's (a hint never changes an answer, see searchNearestFrom). The
       // leaves and lists are those of the previous queries, mostly cached: no prefetcher.
+      // Consecutive points mostly share a leaf: its list, laid out once, serves them all.
+      detail::PointListCache cache;
       double previous = std::numeric_limits<double>::infinity();
       Eigen::Vector3d previous_W = Eigen::Vector3d::Zero();
+      int previous_triangle = -1;
       // The caller's arrays are read and written out of order: each point and result its own cache miss,
       // fetched ahead.
       constexpr std::size_t kAhead = 8;  // queries ahead: several hundred cycles, time for a miss to land
@@ -490,9 +549,10 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
         }
         const std::size_t i = ordered[j];
         const double hint = previous + (points_W[i] - previous_W).norm();
-        results[i] = pointDistance(model, X_WM, points_W[i], options, hint * hint);
+        results[i] = pointDistance(model, X_WM, points_W[i], options, four, &cache, hint * hint, previous_triangle);
         previous = std::abs(results[i].distance);
         previous_W = points_W[i];
+        previous_triangle = results[i].triangle;
       }
       return;
     }
@@ -501,7 +561,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
     prefetcher.start(std::ptrdiff_t(begin), std::ptrdiff_t(end));
     for (std::size_t i = begin; i != end; ++i) {
       prefetcher.advance(std::ptrdiff_t(i), std::ptrdiff_t(end));
-      results[i] = pointDistance(model, X_WM, points_W[i], options);
+      results[i] = pointDistance(model, X_WM, points_W[i], options, four);
     }
   };
   inParallel(std::clamp<std::size_t>(count / (8 * std::size_t(threads)), 1, 256), queryRange);

@@ -4,12 +4,388 @@
 #include "detail/query_kernels.h"
 
 #if CFL_X86_64_V3_KERNELS
+#include <immintrin.h>
 
 #pragma GCC push_options
 #pragma GCC target("arch=x86-64-v3")
 
 namespace cfl::detail::x86_64_v3 {
 #include "detail/triangle_distance_kernels.inc"
+
+namespace {
+
+// Three coordinates, each over the four lanes (one triangle per lane). The arithmetic below spells out the
+// scalar kernel's Eigen expressions operation by operation, in their order: sums of products left to right,
+// cross products as Eigen writes them.
+struct Lanes3 {
+  __m256d x, y, z;
+};
+
+inline Lanes3 sub(const Lanes3& a, const Lanes3& b) {
+  return {_mm256_sub_pd(a.x, b.x), _mm256_sub_pd(a.y, b.y), _mm256_sub_pd(a.z, b.z)};
+}
+inline __m256d dot(const Lanes3& a, const Lanes3& b) {
+  return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(a.x, b.x), _mm256_mul_pd(a.y, b.y)), _mm256_mul_pd(a.z, b.z));
+}
+inline Lanes3 cross(const Lanes3& l, const Lanes3& r) {
+  return {_mm256_sub_pd(_mm256_mul_pd(l.y, r.z), _mm256_mul_pd(l.z, r.y)),
+          _mm256_sub_pd(_mm256_mul_pd(l.z, r.x), _mm256_mul_pd(l.x, r.z)),
+          _mm256_sub_pd(_mm256_mul_pd(l.x, r.y), _mm256_mul_pd(l.y, r.x))};
+}
+inline Lanes3 blend(const Lanes3& a, const Lanes3& b, __m256d take_b) {
+  return {_mm256_blendv_pd(a.x, b.x, take_b), _mm256_blendv_pd(a.y, b.y, take_b), _mm256_blendv_pd(a.z, b.z, take_b)};
+}
+// start + s dir, per coordinate start + (s * dir) as Eigen evaluates it.
+inline Lanes3 along(const Lanes3& start, __m256d s, const Lanes3& dir) {
+  return {_mm256_add_pd(start.x, _mm256_mul_pd(s, dir.x)), _mm256_add_pd(start.y, _mm256_mul_pd(s, dir.y)),
+          _mm256_add_pd(start.z, _mm256_mul_pd(s, dir.z))};
+}
+
+// Rows r0..r3 (one per triangle) become columns: r_k holds element k of every row.
+inline void transpose(__m256d& r0, __m256d& r1, __m256d& r2, __m256d& r3) {
+  const __m256d t0 = _mm256_unpacklo_pd(r0, r1);
+  const __m256d t1 = _mm256_unpackhi_pd(r0, r1);
+  const __m256d t2 = _mm256_unpacklo_pd(r2, r3);
+  const __m256d t3 = _mm256_unpackhi_pd(r2, r3);
+  r0 = _mm256_permute2f128_pd(t0, t2, 0x20);
+  r1 = _mm256_permute2f128_pd(t1, t3, 0x20);
+  r2 = _mm256_permute2f128_pd(t0, t2, 0x31);
+  r3 = _mm256_permute2f128_pd(t1, t3, 0x31);
+}
+
+// pointSegment of the scalar kernel: the squared distance from p to a + s e (s clamped to [0, 1]), and s.
+inline __m256d pointSegment4(const Lanes3& p, const Lanes3& a, const Lanes3& e, __m256d e2, __m256d& s_out) {
+  const Lanes3 d = sub(p, a);
+  const __m256d s = dot(e, d);
+  __m256d t = _mm256_div_pd(s, e2);
+  t = _mm256_blendv_pd(t, _mm256_set1_pd(1.0), _mm256_cmp_pd(s, e2, _CMP_GE_OQ));
+  t = _mm256_blendv_pd(t, _mm256_setzero_pd(), _mm256_cmp_pd(s, _mm256_setzero_pd(), _CMP_LE_OQ));
+  s_out = t;
+  const Lanes3 offset = sub(d, {_mm256_mul_pd(t, e.x), _mm256_mul_pd(t, e.y), _mm256_mul_pd(t, e.z)});
+  return dot(offset, offset);
+}
+
+}  // namespace
+
+void pointTriangleSquaredDistances4(const Vec& p, const std::array<Vec, 3>* const triangles[4], double squared[4],
+                                    Vec closest[4]) {
+  // Each triangle is nine doubles in a row: (a, b.x) and (b.y, b.z, c.x, c.y) transposed by fours, c.z apart.
+  __m256d r0 = _mm256_loadu_pd(triangles[0]->data()->data());
+  __m256d r1 = _mm256_loadu_pd(triangles[1]->data()->data());
+  __m256d r2 = _mm256_loadu_pd(triangles[2]->data()->data());
+  __m256d r3 = _mm256_loadu_pd(triangles[3]->data()->data());
+  transpose(r0, r1, r2, r3);
+  __m256d u0 = _mm256_loadu_pd(triangles[0]->data()->data() + 4);
+  __m256d u1 = _mm256_loadu_pd(triangles[1]->data()->data() + 4);
+  __m256d u2 = _mm256_loadu_pd(triangles[2]->data()->data() + 4);
+  __m256d u3 = _mm256_loadu_pd(triangles[3]->data()->data() + 4);
+  transpose(u0, u1, u2, u3);
+  const __m256d cz = _mm256_set_pd((*triangles[3])[2].z(), (*triangles[2])[2].z(), (*triangles[1])[2].z(),
+                                   (*triangles[0])[2].z());
+  const Lanes3 a{r0, r1, r2}, b{r3, u0, u1}, c{u2, u3, cz};
+  const Lanes3 q{_mm256_set1_pd(p.x()), _mm256_set1_pd(p.y()), _mm256_set1_pd(p.z())};
+
+  const Lanes3 ab = sub(b, a), ac = sub(c, a);
+  const Lanes3 n = cross(ab, ac);
+  const __m256d nn = dot(n, n);
+  const __m256d ab2 = dot(ab, ab), ac2 = dot(ac, ac);
+  const __m256d fast =
+      _mm256_cmp_pd(nn, _mm256_mul_pd(_mm256_mul_pd(_mm256_set1_pd(kFastSin2), ab2), ac2), _CMP_GT_OQ);
+  const Lanes3 ap = sub(q, a);
+  const Lanes3 bc = sub(c, b);
+  const __m256d s0 = dot(n, cross(ab, ap));
+  const __m256d s1 = dot(n, cross(bc, sub(q, b)));
+  const __m256d s2 = dot(n, cross(ap, ac));
+  const __m256d zero = _mm256_setzero_pd();
+
+  // Inside the face: the height over the plane.
+  const __m256d h = dot(n, ap);
+  const __m256d k = _mm256_div_pd(h, nn);
+  const __m256d face_squared = _mm256_mul_pd(h, k);
+  const Lanes3 face_closest = sub(q, {_mm256_mul_pd(k, n.x), _mm256_mul_pd(k, n.y), _mm256_mul_pd(k, n.z)});
+
+  // Else the edges whose lines separate p from the triangle, in the scalar kernel's order, a later one taken
+  // when !(d >= best) as there.
+  __m256d t0, t1, t2;
+  const __m256d d0 = pointSegment4(q, a, ab, ab2, t0);
+  const __m256d d1 = pointSegment4(q, b, bc, dot(bc, bc), t1);
+  const __m256d d2 = pointSegment4(q, a, ac, ac2, t2);
+  const __m256d out0 = _mm256_cmp_pd(s0, zero, _CMP_NGE_UQ);
+  const __m256d out1 = _mm256_cmp_pd(s1, zero, _CMP_NGE_UQ);
+  const __m256d out2 = _mm256_cmp_pd(s2, zero, _CMP_NGE_UQ);
+  __m256d best = _mm256_blendv_pd(_mm256_set1_pd(std::numeric_limits<double>::infinity()), d0, out0);
+  __m256d t = _mm256_blendv_pd(zero, t0, out0);
+  Lanes3 start = a, dir = ab;
+  const __m256d take1 = _mm256_and_pd(out1, _mm256_cmp_pd(d1, best, _CMP_NGE_UQ));
+  best = _mm256_blendv_pd(best, d1, take1);
+  t = _mm256_blendv_pd(t, t1, take1);
+  start = blend(start, b, take1);
+  dir = blend(dir, bc, take1);
+  const __m256d take2 = _mm256_and_pd(out2, _mm256_cmp_pd(d2, best, _CMP_NGE_UQ));
+  best = _mm256_blendv_pd(best, d2, take2);
+  t = _mm256_blendv_pd(t, t2, take2);
+  start = blend(start, a, take2);
+  dir = blend(dir, ac, take2);
+  const Lanes3 edge_closest = along(start, t, dir);
+
+  const __m256d inside = _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(s0, zero, _CMP_GE_OQ), _mm256_cmp_pd(s1, zero, _CMP_GE_OQ)),
+                                       _mm256_cmp_pd(s2, zero, _CMP_GE_OQ));
+  const __m256d result = _mm256_blendv_pd(best, face_squared, inside);
+  const Lanes3 point = blend(edge_closest, face_closest, inside);
+  alignas(32) double xs[4], ys[4], zs[4];
+  _mm256_storeu_pd(squared, result);
+  _mm256_store_pd(xs, point.x);
+  _mm256_store_pd(ys, point.y);
+  _mm256_store_pd(zs, point.z);
+  const int fast_lanes = _mm256_movemask_pd(fast);
+  for (int lane = 0; lane < 4; ++lane) {
+    if (fast_lanes & (1 << lane)) {
+      closest[lane] = Vec(xs[lane], ys[lane], zs[lane]);
+    } else {
+      const auto& c3 = *triangles[lane];
+      squared[lane] = pointTriangleSquaredDistance(p, c3[0], c3[1], c3[2], &closest[lane]);
+    }
+  }
+}
+
+void scanPointList(const Vec& p, const PointListScan& list, const MeshModel& geometry, double& best_squared,
+                   int& best_triangle, Vec& closest) {
+  // As the generic scan: bounds shrunk by far more than their rounding before they may skip an entry.
+  constexpr double kShrink = 1 - 1e-12;
+  const Eigen::Vector4d* spheres = geometry.spheres.data();
+  const Eigen::Vector4d* planes = geometry.planes.data();
+  const std::array<Vec, 3>* corners = geometry.corners.data();
+  PendingTriangleTests tests;
+  tests.four = &pointTriangleSquaredDistances4;
+  double best = std::sqrt(best_squared);
+  const double scale = std::abs(p.x()) + std::abs(p.y()) + std::abs(p.z());
+  const __m256d px = _mm256_set1_pd(p.x()), py = _mm256_set1_pd(p.y()), pz = _mm256_set1_pd(p.z());
+  const __m256d shrink = _mm256_set1_pd(kShrink);
+  const __m256d slack_scale = _mm256_set1_pd(scale);
+  const __m256d slack_unit = _mm256_set1_pd(1e-13);
+  const __m256d sign_bit = _mm256_set1_pd(-0.0);
+  for (std::uint32_t n = 0; n < list.length; n += 4) {
+    // The entries of this block before the first whose bound reaches the best: sorted, none after it can
+    // beat the best (a block's best may be a batch old, see PendingTriangleTests).
+    int ids[4];
+    int count = 0;
+    const std::uint32_t end = std::min(list.length, n + 4);
+    bool stop = false;
+    for (std::uint32_t m = n; m < end; ++m) {
+      const double bound = double(list.bounds[m]) * list.unit;
+      if (bound * bound >= best_squared) {
+        stop = true;
+        break;
+      }
+      ids[count++] = list.high ? std::int32_t(std::uint32_t(list.low[m]) | std::uint32_t(list.high[m]) << 16)
+                               : list.base + std::int32_t(list.low[m]);
+    }
+    if (count > 0) {
+      for (int k = count; k < 4; ++k) ids[k] = ids[0];
+      __m256d cx = _mm256_loadu_pd(spheres[ids[0]].data()), cy = _mm256_loadu_pd(spheres[ids[1]].data());
+      __m256d cz = _mm256_loadu_pd(spheres[ids[2]].data()), r = _mm256_loadu_pd(spheres[ids[3]].data());
+      transpose(cx, cy, cz, r);
+      __m256d nx = _mm256_loadu_pd(planes[ids[0]].data()), ny = _mm256_loadu_pd(planes[ids[1]].data());
+      __m256d nz = _mm256_loadu_pd(planes[ids[2]].data()), w = _mm256_loadu_pd(planes[ids[3]].data());
+      transpose(nx, ny, nz, w);
+      // The triangle's bounding sphere: |p - center| >= radius + best puts it beyond the best.
+      const Lanes3 offset = sub({px, py, pz}, {cx, cy, cz});
+      const __m256d reach_squared = dot(offset, offset);
+      const __m256d rim = _mm256_add_pd(r, _mm256_set1_pd(best));
+      const __m256d near_sphere =
+          _mm256_cmp_pd(_mm256_mul_pd(reach_squared, shrink), _mm256_mul_pd(rim, rim), _CMP_NGE_UQ);
+      // Its plane (zero for a sliver, which then passes).
+      const __m256d along_normal = _mm256_sub_pd(dot({nx, ny, nz}, {px, py, pz}), w);
+      const __m256d slack =
+          _mm256_mul_pd(slack_unit, _mm256_add_pd(_mm256_add_pd(slack_scale, _mm256_andnot_pd(sign_bit, w)), r));
+      const __m256d height = _mm256_sub_pd(_mm256_andnot_pd(sign_bit, along_normal), slack);
+      const __m256d near_plane =
+          _mm256_cmp_pd(_mm256_mul_pd(height, shrink), _mm256_set1_pd(best), _CMP_NGE_UQ);
+      int pass = _mm256_movemask_pd(_mm256_and_pd(near_sphere, near_plane)) & ((1 << count) - 1);
+      while (pass != 0) {
+        const int k = __builtin_ctz(unsigned(pass));
+        pass &= pass - 1;
+        if (tests.add(p, corners[ids[k]], ids[k], best_squared, best_triangle, &closest)) best = std::sqrt(best_squared);
+      }
+    }
+    if (stop) break;
+  }
+  tests.run(p, best_squared, best_triangle, &closest);
+}
+
+namespace {
+
+// Lays out block b of the cached list (see PointListCache).
+void fillBlock(PointListCache& cache, const MeshModel& geometry, std::uint32_t b) {
+  const PointListScan& list = cache.source;
+  std::int32_t* ids = cache.ids.data() + 4 * std::size_t(b);
+  double* block = cache.lanes.data() + std::size_t(b) * PointListCache::kBlock;
+  const std::uint32_t first = 4 * b;
+  const std::uint32_t count = std::min<std::uint32_t>(4, list.length - first);
+  for (std::uint32_t k = 0; k < 4; ++k) {
+    // Lanes past the list repeat its last entry, behind an infinite bound.
+    const std::uint32_t n = first + std::min(k, count - 1);
+    ids[k] = list.high ? std::int32_t(std::uint32_t(list.low[n]) | std::uint32_t(list.high[n]) << 16)
+                       : list.base + std::int32_t(list.low[n]);
+    const double bound = double(list.bounds[n]) * list.unit;
+    block[k] = k < count ? bound * bound : std::numeric_limits<double>::infinity();
+  }
+  __m256d cx = _mm256_loadu_pd(geometry.spheres[ids[0]].data()), cy = _mm256_loadu_pd(geometry.spheres[ids[1]].data());
+  __m256d cz = _mm256_loadu_pd(geometry.spheres[ids[2]].data()), r = _mm256_loadu_pd(geometry.spheres[ids[3]].data());
+  transpose(cx, cy, cz, r);
+  __m256d nx = _mm256_loadu_pd(geometry.planes[ids[0]].data()), ny = _mm256_loadu_pd(geometry.planes[ids[1]].data());
+  __m256d nz = _mm256_loadu_pd(geometry.planes[ids[2]].data()), w = _mm256_loadu_pd(geometry.planes[ids[3]].data());
+  transpose(nx, ny, nz, w);
+  _mm256_storeu_pd(block + 4, cx);
+  _mm256_storeu_pd(block + 8, cy);
+  _mm256_storeu_pd(block + 12, cz);
+  _mm256_storeu_pd(block + 16, r);
+  _mm256_storeu_pd(block + 20, nx);
+  _mm256_storeu_pd(block + 24, ny);
+  _mm256_storeu_pd(block + 28, nz);
+  _mm256_storeu_pd(block + 32, w);
+}
+
+}  // namespace
+
+void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& geometry, double& best_squared,
+                         int& best_triangle, Vec& closest) {
+  constexpr double kShrink = 1 - 1e-12;
+  const std::array<Vec, 3>* corners = geometry.corners.data();
+  PendingTriangleTests tests;
+  tests.four = &pointTriangleSquaredDistances4;
+  double best = std::sqrt(best_squared);
+  const double scale = std::abs(p.x()) + std::abs(p.y()) + std::abs(p.z());
+  const __m256d px = _mm256_set1_pd(p.x()), py = _mm256_set1_pd(p.y()), pz = _mm256_set1_pd(p.z());
+  const __m256d shrink = _mm256_set1_pd(kShrink);
+  const __m256d slack_scale = _mm256_set1_pd(scale);
+  const __m256d slack_unit = _mm256_set1_pd(1e-13);
+  const __m256d sign_bit = _mm256_set1_pd(-0.0);
+  const std::uint32_t blocks = (list.source.length + 3) / 4;
+  for (std::uint32_t b = 0; b < blocks; ++b) {
+    if (b == list.filled) fillBlock(list, geometry, list.filled++);
+    const double* block = list.lanes.data() + std::size_t(b) * PointListCache::kBlock;
+    const std::int32_t* ids = list.ids.data() + 4 * std::size_t(b);
+    // The block's entries before the first whose bound reaches the best (as scanPointList).
+    const int stop = _mm256_movemask_pd(_mm256_cmp_pd(_mm256_loadu_pd(block), _mm256_set1_pd(best_squared), _CMP_GE_OQ));
+    const int count = stop ? __builtin_ctz(unsigned(stop)) : 4;
+    if (count > 0) {
+      const __m256d cx = _mm256_loadu_pd(block + 4), cy = _mm256_loadu_pd(block + 8);
+      const __m256d cz = _mm256_loadu_pd(block + 12), r = _mm256_loadu_pd(block + 16);
+      const __m256d nx = _mm256_loadu_pd(block + 20), ny = _mm256_loadu_pd(block + 24);
+      const __m256d nz = _mm256_loadu_pd(block + 28), w = _mm256_loadu_pd(block + 32);
+      const Lanes3 offset = sub({px, py, pz}, {cx, cy, cz});
+      const __m256d reach_squared = dot(offset, offset);
+      const __m256d rim = _mm256_add_pd(r, _mm256_set1_pd(best));
+      const __m256d near_sphere =
+          _mm256_cmp_pd(_mm256_mul_pd(reach_squared, shrink), _mm256_mul_pd(rim, rim), _CMP_NGE_UQ);
+      const __m256d along_normal = _mm256_sub_pd(dot({nx, ny, nz}, {px, py, pz}), w);
+      const __m256d slack =
+          _mm256_mul_pd(slack_unit, _mm256_add_pd(_mm256_add_pd(slack_scale, _mm256_andnot_pd(sign_bit, w)), r));
+      const __m256d height = _mm256_sub_pd(_mm256_andnot_pd(sign_bit, along_normal), slack);
+      const __m256d near_plane =
+          _mm256_cmp_pd(_mm256_mul_pd(height, shrink), _mm256_set1_pd(best), _CMP_NGE_UQ);
+      int pass = _mm256_movemask_pd(_mm256_and_pd(near_sphere, near_plane)) & ((1 << count) - 1);
+      while (pass != 0) {
+        const int k = __builtin_ctz(unsigned(pass));
+        pass &= pass - 1;
+        if (tests.add(p, corners[ids[k]], ids[k], best_squared, best_triangle, &closest)) best = std::sqrt(best_squared);
+      }
+    }
+    if (stop) break;
+  }
+  tests.run(p, best_squared, best_triangle, &closest);
+}
+
+void nearestTriangleBounded(const MeshModel& model, const Vec& p, double& best_squared, int& best_triangle,
+                            Vec* closest) {
+  constexpr double kShrink = 1 - 1e-12;
+  const auto& nodes = model.compact_nodes;
+  if (nodes.empty()) return;
+  // nearestTriangleCompactBounded's box distance with the three axes in lanes: the same sums in the same
+  // order, (x^2 + y^2) + z^2, so the same children order and the same walk. (A gap of -0 here may be +0
+  // there; squared, both are +0.) The fourth lane, the node's link read as a float, is dropped.
+  const __m256d point = _mm256_set_pd(0.0, p.z(), p.y(), p.x());
+  const __m256d xyz = _mm256_castsi256_pd(_mm256_set_epi64x(0, -1, -1, -1));
+  const auto boxSquared = [&](const CompactBvhNode& node) {
+    const __m256d low = _mm256_cvtps_pd(_mm_loadu_ps(node.min));
+    const __m256d high = _mm256_cvtps_pd(_mm_loadu_ps(node.max));
+    const __m256d zero = _mm256_setzero_pd();
+    const __m256d gap = _mm256_add_pd(_mm256_max_pd(_mm256_sub_pd(low, point), zero),
+                                      _mm256_max_pd(_mm256_sub_pd(point, high), zero));
+    const __m256d squared = _mm256_and_pd(_mm256_mul_pd(gap, gap), xyz);
+    const __m128d xy = _mm256_castpd256_pd128(squared);
+    const __m128d z = _mm256_extractf128_pd(squared, 1);
+    return _mm_cvtsd_f64(_mm_add_sd(_mm_add_sd(xy, _mm_unpackhi_pd(xy, xy)), z));
+  };
+  struct Pending {
+    double bound;
+    int node;
+  };
+  Pending stack[128];
+  int top = 0;
+  stack[top++] = {boxSquared(nodes[0]), 0};
+  double best = std::sqrt(best_squared);
+  const double scale = std::abs(p.x()) + std::abs(p.y()) + std::abs(p.z());
+  const __m256d px = _mm256_set1_pd(p.x()), py = _mm256_set1_pd(p.y()), pz = _mm256_set1_pd(p.z());
+  const __m256d shrink = _mm256_set1_pd(kShrink);
+  const __m256d slack_scale = _mm256_set1_pd(scale);
+  const __m256d slack_unit = _mm256_set1_pd(1e-13);
+  const __m256d sign_bit = _mm256_set1_pd(-0.0);
+  const Eigen::Vector4d* spheres = model.leaf_spheres.data();
+  const Eigen::Vector4d* planes = model.leaf_planes.data();
+  PendingTriangleTests tests;
+  tests.four = &pointTriangleSquaredDistances4;
+  while (top > 0) {
+    const Pending pending = stack[--top];
+    if (pending.bound > best_squared) continue;
+    const CompactBvhNode& node = nodes[pending.node];
+    if (node.count > 0) {
+      const int end = node.first + node.count;
+      for (int i = node.first; i < end; i += 4) {
+        // Lanes past the leaf repeat its last triangle and are masked off.
+        const int lanes = std::min(4, end - i);
+        const int j1 = i + std::min(1, lanes - 1), j2 = i + std::min(2, lanes - 1), j3 = i + std::min(3, lanes - 1);
+        __m256d cx = _mm256_loadu_pd(spheres[i].data()), cy = _mm256_loadu_pd(spheres[j1].data());
+        __m256d cz = _mm256_loadu_pd(spheres[j2].data()), r = _mm256_loadu_pd(spheres[j3].data());
+        transpose(cx, cy, cz, r);
+        __m256d nx = _mm256_loadu_pd(planes[i].data()), ny = _mm256_loadu_pd(planes[j1].data());
+        __m256d nz = _mm256_loadu_pd(planes[j2].data()), w = _mm256_loadu_pd(planes[j3].data());
+        transpose(nx, ny, nz, w);
+        const Lanes3 offset = sub({px, py, pz}, {cx, cy, cz});
+        const __m256d reach_squared = dot(offset, offset);
+        const __m256d rim = _mm256_add_pd(r, _mm256_set1_pd(best));
+        const __m256d near_sphere =
+            _mm256_cmp_pd(_mm256_mul_pd(reach_squared, shrink), _mm256_mul_pd(rim, rim), _CMP_NGE_UQ);
+        const __m256d along_normal = _mm256_sub_pd(dot({nx, ny, nz}, {px, py, pz}), w);
+        const __m256d slack =
+            _mm256_mul_pd(slack_unit, _mm256_add_pd(_mm256_add_pd(slack_scale, _mm256_andnot_pd(sign_bit, w)), r));
+        const __m256d height = _mm256_sub_pd(_mm256_andnot_pd(sign_bit, along_normal), slack);
+        const __m256d near_plane = _mm256_cmp_pd(_mm256_mul_pd(height, shrink), _mm256_set1_pd(best), _CMP_NGE_UQ);
+        int pass = _mm256_movemask_pd(_mm256_and_pd(near_sphere, near_plane)) & ((1 << lanes) - 1);
+        while (pass != 0) {
+          const int k = __builtin_ctz(unsigned(pass));
+          pass &= pass - 1;
+          if (tests.add(p, model.leaf_corners[i + k], model.bvh.triangle_ids[i + k], best_squared, best_triangle,
+                        closest)) {
+            best = std::sqrt(best_squared);
+          }
+        }
+      }
+      // The batch runs before the walk goes on: the nodes' bounds compare with the best.
+      if (tests.run(p, best_squared, best_triangle, closest)) best = std::sqrt(best_squared);
+      continue;
+    }
+    const double d_left = boxSquared(nodes[node.first]);
+    const double d_right = boxSquared(nodes[node.first + 1]);
+    const bool left_first = d_left <= d_right;
+    const double d_far = left_first ? d_right : d_left;
+    const double d_near = left_first ? d_left : d_right;
+    if (d_far <= best_squared) stack[top++] = {d_far, left_first ? node.first + 1 : node.first};
+    if (d_near <= best_squared) stack[top++] = {d_near, left_first ? node.first : node.first + 1};
+  }
+}
+
 }  // namespace cfl::detail::x86_64_v3
 
 #pragma GCC pop_options

@@ -3,6 +3,7 @@
 
 #include "cfl/error.h"
 #include "cfl/point_query.h"
+#include "cfl/query_kernels.h"
 #include "cfl/triangle_distance.h"
 #include "support/sign_references.h"
 #include "support/test_meshes.h"
@@ -354,6 +355,66 @@ TEST(PointQuery, ConcurrentCallersGetTheSerialAnswers) {
   second.join();
   EXPECT_EQ(a, serial);
   EXPECT_EQ(b, serial);
+}
+
+// The x86-64-v3 build runs the exact tests four triangles at a time, and its scans let through candidates a
+// batch old; the answers must still be the generic build's, bit for bit, ties included (the cube grid), near
+// and far, signed and unsigned, one point and batches.
+TEST(PointQuery, EveryBuildGivesTheGenericBuildsBits) {
+  if (!queryKernelsAvailable(QueryKernels::kX86_64_V3)) GTEST_SKIP() << "only the generic build runs here";
+  const QueryKernels previous = activeQueryKernels();
+  test::Rng rng(17);
+  struct Case {
+    std::string name;
+    CflModel model;
+    std::vector<Eigen::Vector3d> points;
+  };
+  std::vector<Case> cases;
+  for (NamedMesh& named : unsignedMeshes()) {
+    Case c{named.name, buildCflModel(named.mesh), {}};
+    c.points = samplePoints(c.model, 3000, rng);
+    cases.push_back(std::move(c));
+  }
+  {
+    Case c{"cube grid", buildCflModel(unitCube()), {}};
+    for (int i = 0; i < 16; ++i)
+      for (int j = 0; j < 16; ++j)
+        for (int k = 0; k < 16; ++k)
+          c.points.push_back(Eigen::Vector3d(i, j, k) * 0.125 - Eigen::Vector3d::Constant(0.4375));
+    cases.push_back(std::move(c));
+  }
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    for (bool signed_distance : {false, true}) {
+      if (signed_distance && !c.model.sign.closure.closed) continue;
+      PointQueryOptions options;
+      options.signed_distance = signed_distance;
+      std::vector<PointDistance> answers[2];
+      std::vector<PointDistance> single[2];
+      for (int build = 0; build < 2; ++build) {
+        setQueryKernels(build == 0 ? QueryKernels::kGeneric : QueryKernels::kX86_64_V3);
+        answers[build].resize(c.points.size());
+        computePointDistances(c.model, Eigen::Isometry3d::Identity(), c.points.data(), c.points.size(),
+                              answers[build].data(), options);
+        for (std::size_t i = 0; i < c.points.size(); i += 7)
+          single[build].push_back(computePointDistance(c.model, Eigen::Isometry3d::Identity(), c.points[i], options));
+      }
+      for (std::size_t i = 0; i < c.points.size(); ++i) {
+        const PointDistance& x = answers[0][i];
+        const PointDistance& y = answers[1][i];
+        ASSERT_EQ(std::memcmp(&x.distance, &y.distance, sizeof(double)), 0) << i;
+        ASSERT_EQ(x.triangle, y.triangle) << i;
+        ASSERT_EQ(x.closest_point, y.closest_point) << i;
+        ASSERT_EQ(x.gradient, y.gradient) << i;
+      }
+      for (std::size_t i = 0; i < single[0].size(); ++i) {
+        ASSERT_EQ(std::memcmp(&single[0][i].distance, &single[1][i].distance, sizeof(double)), 0) << i;
+        ASSERT_EQ(single[0][i].triangle, single[1][i].triangle) << i;
+        ASSERT_EQ(single[0][i].closest_point, single[1][i].closest_point) << i;
+      }
+    }
+  }
+  setQueryKernels(previous);
 }
 
 TEST(PointQuery, BadPointIsNamedByIndex) {

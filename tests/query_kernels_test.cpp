@@ -5,7 +5,11 @@
 #include "cfl/cfl_query.h"
 #include "cfl/error.h"
 #include "cfl/query_kernels.h"
+#include "cfl/triangle_distance.h"
 #include "support/test_meshes.h"
+
+// The point query's four-triangle kernel is internal: its declaration and whether this library holds it.
+#include "../src/detail/query_kernels.h"
 
 #include <gtest/gtest.h>
 
@@ -13,6 +17,7 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -225,6 +230,76 @@ TEST_F(QueryKernelsTest, SelectingABuildMakesItRunOrFailsNamingIt) {
   EXPECT_STREQ(queryKernelsName(QueryKernels::kGeneric), "generic");
   EXPECT_STREQ(queryKernelsName(QueryKernels::kX86_64_V3), "x86-64-v3");
 }
+
+#if CFL_X86_64_V3_KERNELS
+// Triangles the scalar kernel handles apart or where rounding decides the region: zero area (one point, a
+// repeated corner), collinear corners, slivers just either side of its fast-path threshold, right angles,
+// and coordinates from 1e-300 to 1e300, near and far from the origin; points on corners, on edges, in the
+// plane and off it.
+std::vector<std::array<Eigen::Vector3d, 3>> kernelTriangles(std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u(-1, 1);
+  auto random = [&] { return Eigen::Vector3d(u(rng), u(rng), u(rng)); };
+  std::vector<std::array<Eigen::Vector3d, 3>> triangles;
+  for (int i = 0; i < 2000; ++i) triangles.push_back({random(), random(), random()});
+  const Eigen::Vector3d a = random(), b = random();
+  triangles.push_back({a, a, a});
+  triangles.push_back({a, a, b});
+  triangles.push_back({a, b, b});
+  triangles.push_back({a, 0.5 * (a + b), b});
+  triangles.push_back({a, b, a + 3.0 * (b - a)});
+  for (double height : {1e-1, 1e-2, 1e-3, 1e-8, 1e-14, 1e-20, 0.0}) {
+    triangles.push_back({a, b, 0.5 * (a + b) + height * Eigen::Vector3d(0.3, -0.7, 0.2)});
+    triangles.push_back({a, b, b + 1e-3 * (b - a) + height * Eigen::Vector3d(1, 0, 0)});
+  }
+  triangles.push_back({Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 0)});
+  for (double scale : {1e-300, 1e-150, 1e-10, 1e10, 1e150, 1e300}) {
+    for (int i = 0; i < 50; ++i) triangles.push_back({scale * random(), scale * random(), scale * random()});
+  }
+  for (double offset : {1e6, 1e12}) {
+    const Eigen::Vector3d far = offset * Eigen::Vector3d(1, -2, 3);
+    for (int i = 0; i < 50; ++i) triangles.push_back({far + random(), far + random(), far + 1e-9 * random()});
+  }
+  return triangles;
+}
+
+TEST(PointTriangleKernels, FourAtOnceGiveTheScalarKernelsBits) {
+  if (!queryKernelsAvailable(QueryKernels::kX86_64_V3)) GTEST_SKIP() << "no AVX2 on this CPU";
+  std::mt19937_64 rng(32);
+  const auto triangles = kernelTriangles(rng);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::uniform_int_distribution<std::size_t> pick(0, triangles.size() - 1);
+  std::size_t checked = 0;
+  for (int round = 0; round < 20000; ++round) {
+    const std::array<Eigen::Vector3d, 3>* four[4];
+    // Consecutive runs of the list first, so that each triangle meets every lane; then random mixes.
+    for (int lane = 0; lane < 4; ++lane)
+      four[lane] = &triangles[round < 1000 ? (4 * std::size_t(round) + std::size_t(lane)) % triangles.size() : pick(rng)];
+    // A point near the first triangle at its scale: on a corner, on an edge, in it, or off it.
+    const auto& t = *four[0];
+    const double size = std::max({(t[1] - t[0]).norm(), (t[2] - t[0]).norm(), 1e-300});
+    Eigen::Vector3d p;
+    switch (round % 5) {
+      case 0: p = t[round % 3]; break;
+      case 1: p = t[0] + 0.375 * (t[1] - t[0]); break;
+      case 2: p = (t[0] + t[1] + t[2]) / 3.0; break;
+      default: p = t[0] + 2 * size * Eigen::Vector3d(u(rng), u(rng), u(rng)); break;
+    }
+    double squared[4];
+    Eigen::Vector3d closest[4];
+    detail::x86_64_v3::pointTriangleSquaredDistances4(p, four, squared, closest);
+    for (int lane = 0; lane < 4; ++lane) {
+      const auto& c = *four[lane];
+      Eigen::Vector3d q;
+      const double d = pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q);
+      ASSERT_TRUE(sameBits(d, squared[lane]) && sameBits(q, closest[lane]))
+          << "round " << round << " lane " << lane << ": " << d << " vs " << squared[lane] << ", (" << q.transpose()
+          << ") vs (" << closest[lane].transpose() << ")";
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, 80000u);
+}
+#endif
 
 }  // namespace
 }  // namespace cfl

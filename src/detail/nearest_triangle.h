@@ -5,7 +5,10 @@
 #include "cfl/triangle_distance.h"
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdint>
+#include <vector>
 
 namespace cfl::detail {
 
@@ -94,6 +97,164 @@ inline void nearestTriangleCompact(const MeshModel& model, const Eigen::Vector3d
           if (closest) *closest = q;
         }
       }
+      continue;
+    }
+    const double d_left = boxSquared(nodes[node.first]);
+    const double d_right = boxSquared(nodes[node.first + 1]);
+    const bool left_first = d_left <= d_right;
+    const double d_far = left_first ? d_right : d_left;
+    const double d_near = left_first ? d_left : d_right;
+    if (d_far <= best_squared) stack[top++] = {d_far, left_first ? node.first + 1 : node.first};
+    if (d_near <= best_squared) stack[top++] = {d_near, left_first ? node.first : node.first + 1};
+  }
+}
+/// A kernel computing pointTriangleSquaredDistance from p to four triangles at once, bit for bit (see
+/// x86_64_v3::pointTriangleSquaredDistances4 in detail/query_kernels.h), or nullptr: one at a time.
+using PointTriangles4 = void (*)(const Eigen::Vector3d& p, const std::array<Eigen::Vector3d, 3>* const triangles[4],
+                                 double squared[4], Eigen::Vector3d closest[4]);
+
+/// Exact tests waiting to run four at a time. A scan adds the candidates its bounds let through and runs the
+/// batch when four wait or the scan ends; the batch then accepts, in the order they were added, each
+/// triangle strictly closer than the best so far, as the scan testing them one by one would. Its bounds meanwhile
+/// compare with a best that may be a batch old, which lets through candidates the one-by-one scan would have
+/// skipped; those cannot be strictly closer than the best when their turn comes, so the answer, ties
+/// included, is the one-by-one scan's. Without a kernel each candidate is tested as it comes.
+struct PendingTriangleTests {
+  PointTriangles4 four = nullptr;
+  const std::array<Eigen::Vector3d, 3>* triangles[4];
+  int ids[4];
+  int count = 0;
+
+  /// Adds triangle `id` with corners `c`; returns whether the best improved (then best_squared, best_triangle
+  /// and *closest are the new best's).
+  bool add(const Eigen::Vector3d& p, const std::array<Eigen::Vector3d, 3>& c, int id, double& best_squared,
+           int& best_triangle, Eigen::Vector3d* closest) {
+    triangles[count] = &c;
+    ids[count] = id;
+    ++count;
+    if (four != nullptr && count < 4) return false;
+    return run(p, best_squared, best_triangle, closest);
+  }
+
+  /// Runs the waiting tests; returns whether the best improved.
+  bool run(const Eigen::Vector3d& p, double& best_squared, int& best_triangle, Eigen::Vector3d* closest) {
+    bool improved = false;
+    if (count == 1 || four == nullptr) {
+      // One alone costs less in the scalar kernel, whose answer is the same.
+      for (int k = 0; k < count; ++k) {
+        const auto& c = *triangles[k];
+        Eigen::Vector3d q;
+        const double d = pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q);
+        if (d < best_squared) {
+          best_squared = d;
+          best_triangle = ids[k];
+          if (closest) *closest = q;
+          improved = true;
+        }
+      }
+    } else if (count > 1) {
+      for (int k = count; k < 4; ++k) triangles[k] = triangles[0];
+      double squared[4];
+      Eigen::Vector3d q[4];
+      four(p, triangles, squared, q);
+      for (int k = 0; k < count; ++k) {
+        if (squared[k] < best_squared) {
+          best_squared = squared[k];
+          best_triangle = ids[k];
+          if (closest) *closest = q[k];
+          improved = true;
+        }
+      }
+    }
+    count = 0;
+    return improved;
+  }
+};
+
+/// A closest feature list as the point query scans it (see RegionTree): entry n is triangle base + low[n],
+/// or low[n] | high[n] << 16 when high is set (a wide list); bounds[n] * unit (unit shrunk for rounding)
+/// bounds its distance from below, ascending.
+struct PointListScan {
+  const std::uint16_t* low;
+  const std::uint16_t* high;
+  std::int32_t base;
+  const std::uint8_t* bounds;
+  std::uint32_t length;
+  double unit;
+};
+
+/// One leaf's closest feature list laid out for scanPointListCached: consecutive points of a batch (Morton
+/// order) mostly fall in the leaf of the point before, and their scans then read the entries' bounds, spheres
+/// and planes as contiguous lanes instead of gathering them by triangle id. Blocks of four entries, each
+/// kBlock doubles: the squared entry bounds, then the spheres' x, y, z and radius, then the planes' x, y, z
+/// and offset, four lanes each. The last block is padded with infinite bounds, which end every scan. Blocks
+/// are laid out as scans first reach them (`filled` so far): most scans end well before the list does.
+struct PointListCache {
+  static constexpr int kBlock = 36;
+  static constexpr std::uint32_t kNoLeaf = 0xffffffffu;
+  std::uint32_t leaf = kNoLeaf;
+  PointListScan source{};
+  std::uint32_t filled = 0;
+  std::vector<double> lanes;
+  std::vector<std::int32_t> ids;  // padded as the lanes, with the last entry's id
+};
+
+/// nearestTriangleCompact with each triangle of a leaf first bounded by its own sphere and plane
+/// (MeshModel::leaf_spheres, leaf_planes, which must match the Bvh), as the list scan of the point query
+/// bounds its entries: far from the mesh the node boxes are loose and a walk reaches many leaves whose
+/// triangles are all beyond the best distance. The bounds only skip triangles that could not be strictly
+/// closer than the best, and the walk is the same: same answer, ties included, as nearestTriangleCompact.
+/// `four`: the exact tests' kernel (PendingTriangleTests), nullptr for one at a time.
+inline void nearestTriangleCompactBounded(const MeshModel& model, const Eigen::Vector3d& p, double& best_squared,
+                                          int& best_triangle, Eigen::Vector3d* closest = nullptr,
+                                          PointTriangles4 four = nullptr) {
+  // Both bounds went through a rounding or two: shrunk by far more than their error before they may prune.
+  constexpr double kShrink = 1 - 1e-12;
+  const auto& nodes = model.compact_nodes;
+  if (nodes.empty()) return;
+  const auto boxSquared = [&p](const CompactBvhNode& node) {
+    double sum = 0;
+    for (int axis = 0; axis < 3; ++axis) {
+      const double gap = std::max(double(node.min[axis]) - p[axis], 0.0) + std::max(p[axis] - double(node.max[axis]), 0.0);
+      sum += gap * gap;
+    }
+    return sum;
+  };
+  struct Pending {
+    double bound;
+    int node;
+  };
+  Pending stack[128];
+  int top = 0;
+  stack[top++] = {boxSquared(nodes[0]), 0};
+  // The best distance unsquared, for the bounds (a square root only when it improves). Infinite entry bounds
+  // stay infinite: every bound passes.
+  double best = std::sqrt(best_squared);
+  // The plane bound's rounding, as in the list scan: the products n . p and the offset round at the scale
+  // of the coordinates, and the corners sit off the plane by a few ulps of the triangle's size.
+  const double scale = p.cwiseAbs().sum();
+  PendingTriangleTests tests;
+  tests.four = four;
+  while (top > 0) {
+    const Pending pending = stack[--top];
+    if (pending.bound > best_squared) continue;
+    const CompactBvhNode& node = nodes[pending.node];
+    if (node.count > 0) {
+      for (int i = node.first; i < node.first + node.count; ++i) {
+        const Eigen::Vector4d& sphere = model.leaf_spheres[i];
+        const double reach_squared = (p - sphere.head<3>()).squaredNorm();
+        const double rim = sphere[3] + best;
+        if (reach_squared * kShrink >= rim * rim) continue;
+        const Eigen::Vector4d& plane = model.leaf_planes[i];
+        const double height = std::abs(plane.head<3>().dot(p) - plane[3]) -
+                              1e-13 * (scale + std::abs(plane[3]) + sphere[3]);
+        if (height * kShrink >= best) continue;
+        if (tests.add(p, model.leaf_corners[i], model.bvh.triangle_ids[i], best_squared, best_triangle, closest)) {
+          best = std::sqrt(best_squared);
+        }
+      }
+      // The batch runs before the walk goes on: the nodes' bounds compare with the best.
+      if (tests.run(p, best_squared, best_triangle, closest)) best = std::sqrt(best_squared);
       continue;
     }
     const double d_left = boxSquared(nodes[node.first]);

@@ -91,5 +91,28 @@ double segmentSegmentSquaredDistance(const Eigen::Vector3d& p0, const Eigen::Vec
 double triangleTriangleSquaredDistance(const Eigen::Vector3d p[3], const Eigen::Vector3d q[3],
                                        Eigen::Vector3d* closest_p, Eigen::Vector3d* closest_q);
 bool trianglesIntersect(const Eigen::Vector3d p[3], const Eigen::Vector3d q[3], Eigen::Vector3d* point);
+
+// pointTriangleSquaredDistance from p to four triangles at once (AVX2, four lanes of doubles): squared[k] and
+// closest[k] are bit for bit what pointTriangleSquaredDistance(p, (*triangles[k])[0], [1], [2], &closest[k])
+// returns, every operation rounding as the scalar code's does (no fused multiply-add); a sliver, which the
+// scalar code treats apart, gets that scalar code. The point query runs its exact tests through it, so that
+// a batch of candidates costs about one scalar test.
+void pointTriangleSquaredDistances4(const Eigen::Vector3d& p, const std::array<Eigen::Vector3d, 3>* const triangles[4],
+                                    double squared[4], Eigen::Vector3d closest[4]);
+
+// The point query's scan of a closest feature list, its bounds four entries at a time and its exact tests
+// through pointTriangleSquaredDistances4: the same contract and answer, ties included, as the generic scan
+// in point_query.cpp (best_squared, best_triangle and closest are the best so far on entry, the list's best
+// strictly below it on exit).
+void scanPointList(const Eigen::Vector3d& p, const PointListScan& list, const MeshModel& geometry,
+                   double& best_squared, int& best_triangle, Eigen::Vector3d& closest);
+// nearestTriangleCompactBounded (detail/nearest_triangle.h) with each leaf's sphere and plane bounds four
+// triangles at a time and the exact tests through pointTriangleSquaredDistances4: the same answer.
+void nearestTriangleBounded(const MeshModel& model, const Eigen::Vector3d& p, double& best_squared, int& best_triangle,
+                            Eigen::Vector3d* closest);
+// scanPointList on a list laid out in a PointListCache (blocks laid out as the scan reaches them): the same
+// answer.
+void scanPointListCached(const Eigen::Vector3d& p, PointListCache& list, const MeshModel& geometry,
+                         double& best_squared, int& best_triangle, Eigen::Vector3d& closest);
 }  // namespace cfl::detail::x86_64_v3
 #endif

@@ -1077,6 +1077,73 @@ TEST(ComputeDistance, TrianglesOfBSpanningManyVoxelsMatchBruteForce) {
   EXPECT_EQ(failures.count(), 0);
 }
 
+// A slab whose top carries a small patch of tiny triangles joined to the slab's corners by fans of long
+// slivers: B's slivers leave the lists for A's Bvh, whose walk stops after a budget and goes on as
+// triangle-node pairs in the search's heap (Search::testTriangleAtLeaf); every range must match brute force,
+// searched plainly or through a certifying cache.
+TriangleMesh makeRefinedSlab() {
+  TriangleMesh mesh;
+  constexpr int kN = 24;
+  constexpr double kLo = 4.5, kSize = 1, kTop = 1;
+  auto patch = [&](int i, int j) { return (kN + 1) * j + i; };
+  for (int j = 0; j <= kN; ++j) {
+    for (int i = 0; i <= kN; ++i) {
+      const double u = double(i) / kN, v = double(j) / kN;
+      mesh.vertices.push_back({kLo + kSize * u, kLo + kSize * v, kTop + 0.05 * std::sin(3 * u) * std::sin(3 * v)});
+    }
+  }
+  for (int j = 0; j < kN; ++j) {
+    for (int i = 0; i < kN; ++i) {
+      mesh.triangles.push_back({patch(i, j), patch(i + 1, j), patch(i + 1, j + 1)});
+      mesh.triangles.push_back({patch(i, j), patch(i + 1, j + 1), patch(i, j + 1)});
+    }
+  }
+  const int top = int(mesh.vertices.size());
+  for (const auto& c : {Eigen::Vector2d(0, 0), Eigen::Vector2d(10, 0), Eigen::Vector2d(10, 10), Eigen::Vector2d(0, 10)}) {
+    mesh.vertices.push_back({c.x(), c.y(), kTop});
+  }
+  for (int side = 0; side < 4; ++side) {
+    std::vector<int> edge;
+    for (int k = 0; k <= kN; ++k) {
+      edge.push_back(side == 0 ? patch(k, 0) : side == 1 ? patch(kN, k) : side == 2 ? patch(kN - k, kN) : patch(0, kN - k));
+    }
+    const int a = top + side, c = top + (side + 1) % 4;
+    for (int k = 0; k < kN; ++k) mesh.triangles.push_back({k < kN / 2 ? a : c, edge[k + 1], edge[k]});
+    mesh.triangles.push_back({a, c, edge[kN / 2]});
+  }
+  const int bottom = int(mesh.vertices.size());
+  for (const auto& c : {Eigen::Vector2d(0, 0), Eigen::Vector2d(10, 0), Eigen::Vector2d(10, 10), Eigen::Vector2d(0, 10)}) {
+    mesh.vertices.push_back({c.x(), c.y(), 0.0});
+  }
+  mesh.triangles.push_back({bottom, bottom + 3, bottom + 2});
+  mesh.triangles.push_back({bottom, bottom + 2, bottom + 1});
+  for (int s = 0; s < 4; ++s) {
+    const int d0 = bottom + s, d1 = bottom + (s + 1) % 4, t0 = top + s, t1 = top + (s + 1) % 4;
+    mesh.triangles.push_back({d0, d1, t1});
+    mesh.triangles.push_back({d0, t1, t0});
+  }
+  return mesh;
+}
+
+TEST(ComputeDistance, SliversFannedAroundARefinedPatchMatchBruteForce) {
+  const auto a = makeShape("refined_slab", makeRefinedSlab(), 0);
+  test::Rng rng(2718);
+  Failures failures;
+  for (double fraction : kSeparations) {
+    for (int n = 0; n < 10; ++n) {
+      const Pose pose = makePose(*a, *a, fraction, rng);
+      const DistanceResult truth = bruteForceDistance(a->model, pose.X_WA, a->model, pose.X_WB);
+      checkResult(computeDistance(a->cfl, pose.X_WA, a->model, pose.X_WB), truth, *a, *a, pose, "plain", failures);
+    }
+  }
+  for (double fraction : {0.0, 0.005, 0.05}) {
+    DistanceCache cache;
+    const std::vector<Pose> motion = smoothMotion(*a, *a, makePose(*a, *a, fraction, rng), 15, 1e-3, 1e-3, false, rng);
+    checkCachedFrames(*a, *a, motion, cache, "cached", failures);
+  }
+  EXPECT_EQ(failures.count(), 0);
+}
+
 TEST(DistanceCache, SlowMotionMatchesBruteForceAndIsMostlyAnsweredByTheCertificate) {
   test::Rng rng(101);
   Failures failures;

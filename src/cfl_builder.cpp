@@ -104,22 +104,21 @@ std::int64_t physicalMemoryBytes() {
   return std::int64_t(pages) * page_size;
 }
 
-// Topology culling data for one edge of one triangle. Every point p in all three half-spaces
-// (p - a) . outward >= 0, (p - a) . (d - a) <= 0 and (p - b) . (d - b) <= 0, where (a, b) is the edge and d
-// the opposite corner, has its closest point of the triangle on the edge: projected into the triangle's
-// plane it lies beyond the edge's line and outside the Voronoi regions of the other two edges' interiors.
-struct EdgeRegion {
-  Eigen::Vector3d a, b, outward, to_d_from_a, to_d_from_b;
-  // Per half-space, the 1-norm and 2-norm of its normal: a cube of half edge h is inside the half-space
-  // exactly when its center clears it by h times the 1-norm (the drop to its lowest corner); the 2-norm
-  // scales the rounding margin.
-  Eigen::Vector3d l1_norms, norms;  // outward, to_d_from_a, to_d_from_b
-  int neighbours_begin = 0, neighbours_end = 0;  // other triangles sharing the edge, in edge_neighbours
-  bool usable = false;
+// Topology culling data of one triangle. Edge e runs from corner a = c[e] to b = c[e + 1], d = c[e + 2] is
+// the opposite corner. Every point p in all three half-spaces (p - a) . outward >= 0, (p - a) . (d - a) <= 0
+// and (p - b) . (d - b) <= 0 has its closest point of the triangle on the edge: projected into the
+// triangle's plane it lies beyond the edge's line and outside the Voronoi regions of the other two edges'
+// interiors. The half-spaces are rebuilt from the corners when a cell is tested: a cell reads the corners of
+// its candidates anyway, and keeping them here took several cache lines per candidate.
+struct TriangleTopology {
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();  // (c[1] - c[0]) x (c[2] - c[0]), not normalized
+  // Edge e's other triangles are edge_neighbours[neighbours[e], neighbours[e + 1]); an empty range (no
+  // neighbour, a repeated vertex, or a degenerate triangle) means the edge never culls.
+  std::int32_t neighbours[4] = {0, 0, 0, 0};
 };
 
 struct Topology {
-  std::vector<std::array<EdgeRegion, 3>> edges;  // per triangle
+  std::vector<TriangleTopology> triangles;
   std::vector<int> edge_neighbours;
 };
 
@@ -131,45 +130,49 @@ Topology makeTopology(const MeshModel& geometry) {
     for (int e = 0; e < 3; ++e) by_edge[key(triangles[t][e], triangles[t][(e + 1) % 3])].push_back(t);
   }
   Topology topology;
-  topology.edges.resize(triangles.size());
+  topology.triangles.resize(triangles.size());
   for (int t = 0; t < int(triangles.size()); ++t) {
     const auto& c = geometry.corners[t];
+    TriangleTopology& entry = topology.triangles[t];
     const Eigen::Vector3d normal = (c[1] - c[0]).cross(c[2] - c[0]);
     const double scale = std::max({(c[1] - c[0]).squaredNorm(), (c[2] - c[1]).squaredNorm(), (c[0] - c[2]).squaredNorm()});
     const bool degenerate = !(normal.norm() > 1e-8 * scale);
+    entry.normal = normal;
     for (int e = 0; e < 3; ++e) {
-      EdgeRegion& region = topology.edges[t][e];
       const int u = triangles[t][e], v = triangles[t][(e + 1) % 3];
+      entry.neighbours[e] = int(topology.edge_neighbours.size());
       if (degenerate || u == v) continue;
-      region.a = c[e];
-      region.b = c[(e + 1) % 3];
-      const Eigen::Vector3d d = c[(e + 2) % 3];
-      Eigen::Vector3d outward = (region.b - region.a).cross(normal);
-      if (outward.dot(d - region.a) > 0) outward = -outward;
-      region.outward = outward;
-      region.to_d_from_a = d - region.a;
-      region.to_d_from_b = d - region.b;
-      region.l1_norms = {outward.lpNorm<1>(), region.to_d_from_a.lpNorm<1>(), region.to_d_from_b.lpNorm<1>()};
-      region.norms = {outward.norm(), region.to_d_from_a.norm(), region.to_d_from_b.norm()};
-      region.neighbours_begin = int(topology.edge_neighbours.size());
       for (int other : by_edge[key(u, v)]) {
         if (other != t) topology.edge_neighbours.push_back(other);
       }
-      region.neighbours_end = int(topology.edge_neighbours.size());
-      region.usable = region.neighbours_end > region.neighbours_begin;
     }
+    entry.neighbours[3] = int(topology.edge_neighbours.size());
   }
   return topology;
 }
 
-// Whether all of the cube of center `center` and half edge `half` lies strictly inside the edge's region,
-// with a margin so that rounding never decides. Each half-space is linear, so its lowest value over the cube
-// is at a corner: the center's value minus the reach.
-bool cellInEdgeRegion(const EdgeRegion& region, const Eigen::Vector3d& center, double half, double margin) {
-  const Eigen::Vector3d reach = half * region.l1_norms + margin * region.norms;
-  return (center - region.a).dot(region.outward) > reach[0] &&
-         (center - region.a).dot(region.to_d_from_a) < -reach[1] &&
-         (center - region.b).dot(region.to_d_from_b) < -reach[2];
+// Whether all of the cube of center `center` and half edge `half` lies strictly inside the region of edge e
+// of the triangle with corners c, with a margin so that rounding never decides. Each half-space is linear, so
+// its lowest value over the cube is at a corner: the center's value minus the reach, half edge times the
+// 1-norm of its normal plus the margin times its 2-norm. The 2-norm (a square root) is taken only when the
+// center clears the 1-norm part, which adding a nonnegative margin can only raise.
+bool cellInEdgeRegion(const std::array<Eigen::Vector3d, 3>& c, const Eigen::Vector3d& normal, int e,
+                      const Eigen::Vector3d& center, double half, double margin) {
+  const Eigen::Vector3d& a = c[e];
+  const Eigen::Vector3d& b = c[(e + 1) % 3];
+  const Eigen::Vector3d& d = c[(e + 2) % 3];
+  auto clears = [&](double value, const Eigen::Vector3d& direction) {
+    const double l1 = direction.lpNorm<1>();
+    if (!(value > half * l1)) return false;
+    return value > half * l1 + margin * direction.norm();
+  };
+  Eigen::Vector3d outward = (b - a).cross(normal);
+  if (outward.dot(d - a) > 0) outward = -outward;
+  if (!clears((center - a).dot(outward), outward)) return false;
+  const Eigen::Vector3d to_d_from_a = d - a;
+  if (!clears(-(center - a).dot(to_d_from_a), to_d_from_a)) return false;
+  const Eigen::Vector3d to_d_from_b = d - b;
+  return clears(-(center - b).dot(to_d_from_b), to_d_from_b);
 }
 
 // dmin in units of `unit`, rounded down and saturated, so that unit * result <= dmin (a lower bound).
@@ -390,8 +393,8 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
         bool drop = false;
         for (int e = 0; e < 3 && !drop; ++e) {
           if (!(scratch.edge_masks[n] >> e & 1)) continue;
-          const EdgeRegion& region = topology.edges[candidates[n]][e];
-          for (int m = region.neighbours_begin; m < region.neighbours_end && !drop; ++m) {
+          const TriangleTopology& entry = topology.triangles[candidates[n]];
+          for (int m = entry.neighbours[e]; m < entry.neighbours[e + 1] && !drop; ++m) {
             drop = scratch.marks[topology.edge_neighbours[m]] != undecided;
           }
         }
@@ -414,9 +417,12 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     left = missing + 3;                     // shown to leave
     scratch.edge_masks.assign(candidate_count, 0);
     for (std::uint32_t n = 0; n < candidate_count; ++n) {
-      const auto& regions = topology.edges[candidates[n]];
+      const TriangleTopology& entry = topology.triangles[candidates[n]];
       for (int e = 0; e < 3; ++e) {
-        if (regions[e].usable && cellInEdgeRegion(regions[e], center, half, margin)) scratch.edge_masks[n] |= 1 << e;
+        if (entry.neighbours[e + 1] > entry.neighbours[e] &&
+            cellInEdgeRegion(geometry.corners[candidates[n]], entry.normal, e, center, half, margin)) {
+          scratch.edge_masks[n] |= 1 << e;
+        }
       }
       scratch.marks[candidates[n]] = scratch.edge_masks[n] ? undecided : stays;
       any_droppable = any_droppable || scratch.edge_masks[n];

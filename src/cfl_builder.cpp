@@ -192,6 +192,10 @@ struct ListScratch {
   std::vector<std::uint64_t> sort_keys;  // (bound, id)
   std::vector<std::int32_t> candidates;  // of the current voxel, from the Bvh walk
   std::vector<double> quick_bounds;      // per list entry: cubeTriangleQuickBound, before the full bound
+  std::vector<double> center_distances;  // per list entry: its distance from the cell's center
+  // Per entry of the cell's list: its full bound when entry_exact, else its quick bound (finishCellList).
+  std::vector<double> entry_bounds;
+  std::vector<std::uint8_t> entry_exact;
 };
 
 // The default memory limit of the regions: the smaller of half the machine's memory and this much, so that
@@ -255,7 +259,6 @@ struct CellListOutput {
 // (bound, id) and returns its length.
 std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch, const Eigen::Vector3d& min_corner,
                               double size, const int corner_triangle[8], CellListOutput& out) {
-  const double bound_unit = size / 32;
   const MeshModel& geometry = context.geometry;
   const Topology& topology = context.topology;
   const double half = 0.5 * size;
@@ -436,6 +439,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   // either way).
   std::uint32_t count = 0;
   scratch.quick_bounds.clear();
+  scratch.center_distances.clear();
   bool any_excluded = false;
   for (std::uint32_t n = 0; n < candidate_count; ++n) {
     const int t = candidates[n];
@@ -461,44 +465,89 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     candidates[count] = t;  // compacted in place: n >= count
     if (culling) scratch.edge_masks[count] = scratch.edge_masks[n];
     scratch.quick_bounds.push_back(d_min);
+    scratch.center_distances.push_back(d_center);
     ++count;
   }
   if (culling && any_droppable && any_excluded) propagate(count);
-  // What culling kept, through the full bound. The lower bound of the voxel: the closest triangle to any
-  // of its points is listed, so the smallest listed dmin bounds the voxel-mesh distance from below.
+  // What culling kept. The full bound can only exclude an entry whose distance from the center exceeds
+  // upper_bound, less rounding (it bounds the cube-triangle distance, which the center's bounds); the others
+  // are listed whatever it says, so their full bounds wait for finishCellList, which only the leaves that
+  // store their list call: the cells that split or store none need only the list's length, its triangles and
+  // its lower bound.
   const std::size_t list_begin = out.ids.size();
-  double lower = kInfinity;
+  const double certain = upper_bound - 1e-9 * (center.cwiseAbs().maxCoeff() + size + upper_bound);
+  scratch.entry_bounds.clear();
+  scratch.entry_exact.clear();
   for (std::uint32_t n = 0; n < count; ++n) {
     const int t = candidates[n];
     if (culling && scratch.marks[t] == left) continue;
-    const auto& c = geometry.corners[t];
-    const double d_min =
-        detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], scratch.quick_bounds[n]);
-    if (d_min > upper_bound) continue;
-    lower = std::min(lower, d_min);
+    double d_min = scratch.quick_bounds[n];
+    const bool exact = !(scratch.center_distances[n] < certain);
+    if (exact) {
+      const auto& c = geometry.corners[t];
+      d_min = detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], d_min);
+      if (d_min > upper_bound) continue;
+    }
     out.ids.push_back(t);
-    out.bounds.push_back(quantizeEntryBound(d_min, bound_unit));
+    scratch.entry_bounds.push_back(d_min);
+    scratch.entry_exact.push_back(exact);
   }
   count = static_cast<std::uint32_t>(out.ids.size() - list_begin);
-  std::int32_t* list = out.ids.data() + list_begin;
-  std::uint8_t* bounds = out.bounds.data() + list_begin;
-  // The query scans a list in this order and stops at the first entry whose bound reaches its best
-  // distance so far.
-  scratch.sort_keys.clear();
+  // The lower bound of the voxel: the closest triangle to any of its points is listed, so the smallest
+  // listed full bound bounds the voxel-mesh distance from below. A quick bound never exceeds its full
+  // bound, so only the entries whose quick bound is below the smallest full bound so far need theirs.
+  double lower = kInfinity;
   for (std::uint32_t n = 0; n < count; ++n) {
-    scratch.sort_keys.push_back(std::uint64_t(bounds[n]) << 32 | std::uint32_t(list[n]));
+    if (scratch.entry_exact[n]) lower = std::min(lower, scratch.entry_bounds[n]);
   }
-  std::sort(scratch.sort_keys.begin(), scratch.sort_keys.end());
-  for (std::uint32_t n = 0; n < count; ++n) {
-    bounds[n] = static_cast<std::uint8_t>(scratch.sort_keys[n] >> 32);
-    list[n] = static_cast<std::int32_t>(scratch.sort_keys[n] & 0xffffffffu);
+  for (;;) {
+    std::uint32_t next = count;
+    for (std::uint32_t n = 0; n < count; ++n) {
+      if (!scratch.entry_exact[n] && scratch.entry_bounds[n] < lower &&
+          (next == count || scratch.entry_bounds[n] < scratch.entry_bounds[next])) {
+        next = n;
+      }
+    }
+    if (next == count) break;
+    const auto& c = geometry.corners[out.ids[list_begin + next]];
+    scratch.entry_bounds[next] =
+        detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], scratch.entry_bounds[next]);
+    scratch.entry_exact[next] = true;
+    lower = std::min(lower, scratch.entry_bounds[next]);
   }
   // Rounded down, past the rounding of the bounds' sums too, which scales with the coordinates rather than
   // with the distance: a cell touching the mesh must not get a positive bound from rounding alone.
   const double rounding = 1e-15 * (center.cwiseAbs().maxCoeff() + size);
   out.lower_bound = std::max(0.0, std::nextafter(lower, 0.0) * (1 - 1e-12) - rounding);
   return count;
+}
 
+// Completes the list computeCellList just appended (its last `count` ids) for a leaf that stores it: the
+// full bound of every entry, as entry bounds in units of size / 32, and the order a query scans, by
+// (bound, id): it stops at the first entry whose bound reaches its best distance so far.
+void finishCellList(const BuildContext& context, ListScratch& scratch, const Eigen::Vector3d& min_corner,
+                    double size, std::uint32_t count, CellListOutput& out) {
+  const double half = 0.5 * size;
+  const Eigen::Vector3d center = min_corner + Eigen::Vector3d::Constant(half);
+  const double bound_unit = size / 32;
+  const std::size_t list_begin = out.ids.size() - count;
+  std::int32_t* list = out.ids.data() + list_begin;
+  scratch.sort_keys.clear();
+  for (std::uint32_t n = 0; n < count; ++n) {
+    double d_min = scratch.entry_bounds[n];
+    if (!scratch.entry_exact[n]) {
+      const auto& c = context.geometry.corners[list[n]];
+      d_min = detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], d_min);
+    }
+    scratch.sort_keys.push_back(std::uint64_t(quantizeEntryBound(d_min, bound_unit)) << 32 | std::uint32_t(list[n]));
+  }
+  std::sort(scratch.sort_keys.begin(), scratch.sort_keys.end());
+  out.bounds.resize(list_begin + count);
+  std::uint8_t* bounds = out.bounds.data() + list_begin;
+  for (std::uint32_t n = 0; n < count; ++n) {
+    bounds[n] = static_cast<std::uint8_t>(scratch.sort_keys[n] >> 32);
+    list[n] = static_cast<std::int32_t>(scratch.sort_keys[n] & 0xffffffffu);
+  }
 }
 
 // The 3 x 3 x 3 lattice of a cell being split: its corners, face and edge midpoints and center, point
@@ -589,7 +638,9 @@ class SubtreeBuilder {
     out.nodes[slot] = RegionTree::kLeafBit | leaf;
     const bool near = out.lists.lower_bound <= kNearCells * size;
     const bool stored = !adaptive_ || length <= (near ? kLongestNearList : kLongestFarList);
-    if (!stored) {
+    if (stored) {
+      finishCellList(context_, scratch, min_corner, size, length, out.lists);
+    } else {
       out.lists.ids.resize(begin);
       out.lists.bounds.resize(begin);
     }

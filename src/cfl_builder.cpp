@@ -108,10 +108,12 @@ std::int64_t physicalMemoryBytes() {
 // the opposite corner. Every point p in all three half-spaces (p - a) . outward >= 0, (p - a) . (d - a) <= 0
 // and (p - b) . (d - b) <= 0 has its closest point of the triangle on the edge: projected into the
 // triangle's plane it lies beyond the edge's line and outside the Voronoi regions of the other two edges'
-// interiors. The half-spaces are rebuilt from the corners when a cell is tested: a cell reads the corners of
-// its candidates anyway, and keeping them here took several cache lines per candidate.
+// interiors. Only the outward normals are kept; the rest is rebuilt from the corners when a cell is tested:
+// a cell reads the corners of its candidates anyway, and keeping it all here took several cache lines per
+// candidate.
 struct TriangleTopology {
-  Eigen::Vector3d normal = Eigen::Vector3d::Zero();  // (c[1] - c[0]) x (c[2] - c[0]), not normalized
+  // Per edge: (b - a) x n, n = (c[1] - c[0]) x (c[2] - c[0]), turned away from d.
+  Eigen::Vector3d outward[3] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
   // Edge e's other triangles are edge_neighbours[neighbours[e], neighbours[e + 1]); an empty range (no
   // neighbour, a repeated vertex, or a degenerate triangle) means the edge never culls.
   std::int32_t neighbours[4] = {0, 0, 0, 0};
@@ -137,11 +139,13 @@ Topology makeTopology(const MeshModel& geometry) {
     const Eigen::Vector3d normal = (c[1] - c[0]).cross(c[2] - c[0]);
     const double scale = std::max({(c[1] - c[0]).squaredNorm(), (c[2] - c[1]).squaredNorm(), (c[0] - c[2]).squaredNorm()});
     const bool degenerate = !(normal.norm() > 1e-8 * scale);
-    entry.normal = normal;
     for (int e = 0; e < 3; ++e) {
       const int u = triangles[t][e], v = triangles[t][(e + 1) % 3];
       entry.neighbours[e] = int(topology.edge_neighbours.size());
       if (degenerate || u == v) continue;
+      Eigen::Vector3d outward = (c[(e + 1) % 3] - c[e]).cross(normal);
+      if (outward.dot(c[(e + 2) % 3] - c[e]) > 0) outward = -outward;
+      entry.outward[e] = outward;
       for (int other : by_edge[key(u, v)]) {
         if (other != t) topology.edge_neighbours.push_back(other);
       }
@@ -156,7 +160,7 @@ Topology makeTopology(const MeshModel& geometry) {
 // its lowest value over the cube is at a corner: the center's value minus the reach, half edge times the
 // 1-norm of its normal plus the margin times its 2-norm. The 2-norm (a square root) is taken only when the
 // center clears the 1-norm part, which adding a nonnegative margin can only raise.
-bool cellInEdgeRegion(const std::array<Eigen::Vector3d, 3>& c, const Eigen::Vector3d& normal, int e,
+bool cellInEdgeRegion(const std::array<Eigen::Vector3d, 3>& c, const Eigen::Vector3d& outward, int e,
                       const Eigen::Vector3d& center, double half, double margin) {
   const Eigen::Vector3d& a = c[e];
   const Eigen::Vector3d& b = c[(e + 1) % 3];
@@ -166,8 +170,6 @@ bool cellInEdgeRegion(const std::array<Eigen::Vector3d, 3>& c, const Eigen::Vect
     if (!(value > half * l1)) return false;
     return value > half * l1 + margin * direction.norm();
   };
-  Eigen::Vector3d outward = (b - a).cross(normal);
-  if (outward.dot(d - a) > 0) outward = -outward;
   if (!clears((center - a).dot(outward), outward)) return false;
   const Eigen::Vector3d to_d_from_a = d - a;
   if (!clears(-(center - a).dot(to_d_from_a), to_d_from_a)) return false;
@@ -423,7 +425,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
       const TriangleTopology& entry = topology.triangles[candidates[n]];
       for (int e = 0; e < 3; ++e) {
         if (entry.neighbours[e + 1] > entry.neighbours[e] &&
-            cellInEdgeRegion(geometry.corners[candidates[n]], entry.normal, e, center, half, margin)) {
+            cellInEdgeRegion(geometry.corners[candidates[n]], entry.outward[e], e, center, half, margin)) {
           scratch.edge_masks[n] |= 1 << e;
         }
       }

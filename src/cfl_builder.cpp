@@ -187,10 +187,13 @@ std::uint8_t quantizeEntryBound(double d_min, double unit) {
 struct ListScratch {
   // Topology culling: marks[t] in [last_mark - 3, last_mark] when triangle t is a candidate of the current
   // voxel, saying whether a test excluded it, it stays, may leave or has left; any other value means not a
-  // candidate. Sized on first use, so that idle workers cost nothing; 4 bytes per triangle per worker.
+  // candidate. Sized on first use, so that idle workers cost nothing; with triangle_masks, 5 bytes per
+  // triangle per worker.
   std::vector<std::uint32_t> marks;
   std::uint32_t last_mark = 0;
-  std::vector<std::uint8_t> edge_masks;  // per candidate: the edges whose region holds the voxel
+  // Per triangle: the edges whose region holds the voxel, read only for undecided candidates.
+  std::vector<std::uint8_t> triangle_masks;
+  std::vector<std::int32_t> pending;     // triangles that left, whose neighbours may follow
   std::vector<std::uint64_t> sort_keys;  // (bound, id)
   std::vector<std::int32_t> candidates;  // of the current voxel, from the Bvh walk
   std::vector<double> quick_bounds;      // per list entry: cubeTriangleQuickBound, before the full bound
@@ -390,22 +393,40 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   // drops, the second round reaches the same least fixed point as a single round after the tests.
   const bool culling = context.culling && candidate_count > 1;
   std::uint32_t missing = 0, stays = 0, undecided = 0, left = 0;
+  // Whether undecided triangle t may leave now: some edge whose region holds the voxel has a neighbour that
+  // is not undecided.
+  auto mayLeave = [&](int t) {
+    const TriangleTopology& entry = topology.triangles[t];
+    const std::uint8_t mask = scratch.triangle_masks[t];
+    for (int e = 0; e < 3; ++e) {
+      if (!(mask >> e & 1)) continue;
+      for (int m = entry.neighbours[e]; m < entry.neighbours[e + 1]; ++m) {
+        if (scratch.marks[topology.edge_neighbours[m]] != undecided) return true;
+      }
+    }
+    return false;
+  };
+  // The rule only ever turns undecided into left, so its fixed point does not depend on the order: one pass
+  // over the candidates, then only the neighbours of what left, the only triangles whose answer can change.
   auto propagate = [&](std::uint32_t size) {  // over candidates[0, size)
-    for (bool changed = true; changed;) {
-      changed = false;
-      for (std::uint32_t n = 0; n < size; ++n) {
-        if (scratch.marks[candidates[n]] != undecided) continue;
-        bool drop = false;
-        for (int e = 0; e < 3 && !drop; ++e) {
-          if (!(scratch.edge_masks[n] >> e & 1)) continue;
-          const TriangleTopology& entry = topology.triangles[candidates[n]];
-          for (int m = entry.neighbours[e]; m < entry.neighbours[e + 1] && !drop; ++m) {
-            drop = scratch.marks[topology.edge_neighbours[m]] != undecided;
-          }
-        }
-        if (drop) {
-          scratch.marks[candidates[n]] = left;
-          changed = true;
+    std::vector<std::int32_t>& pending = scratch.pending;
+    pending.clear();
+    for (std::uint32_t n = 0; n < size; ++n) {
+      const int t = candidates[n];
+      if (scratch.marks[t] == undecided && mayLeave(t)) {
+        scratch.marks[t] = left;
+        pending.push_back(t);
+      }
+    }
+    while (!pending.empty()) {
+      const int t = pending.back();
+      pending.pop_back();
+      const TriangleTopology& entry = topology.triangles[t];
+      for (int m = entry.neighbours[0]; m < entry.neighbours[3]; ++m) {
+        const int other = topology.edge_neighbours[m];
+        if (scratch.marks[other] == undecided && mayLeave(other)) {
+          scratch.marks[other] = left;
+          pending.push_back(other);
         }
       }
     }
@@ -414,23 +435,26 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   if (culling) {
     if (scratch.marks.empty() || scratch.last_mark > std::numeric_limits<std::uint32_t>::max() - 4) {
       scratch.marks.assign(geometry.mesh.triangles.size(), 0);
+      scratch.triangle_masks.assign(geometry.mesh.triangles.size(), 0);
       scratch.last_mark = 0;
     }
     missing = (scratch.last_mark += 4) - 3;  // excluded by a test; any older mark: never a candidate
     stays = missing + 1;                    // listed, not droppable
     undecided = missing + 2;                // droppable, not yet shown to leave
     left = missing + 3;                     // shown to leave
-    scratch.edge_masks.assign(candidate_count, 0);
     for (std::uint32_t n = 0; n < candidate_count; ++n) {
-      const TriangleTopology& entry = topology.triangles[candidates[n]];
+      const int t = candidates[n];
+      const TriangleTopology& entry = topology.triangles[t];
+      std::uint8_t mask = 0;
       for (int e = 0; e < 3; ++e) {
         if (entry.neighbours[e + 1] > entry.neighbours[e] &&
-            cellInEdgeRegion(geometry.corners[candidates[n]], entry.outward[e], e, center, half, margin)) {
-          scratch.edge_masks[n] |= 1 << e;
+            cellInEdgeRegion(geometry.corners[t], entry.outward[e], e, center, half, margin)) {
+          mask |= std::uint8_t(1 << e);
         }
       }
-      scratch.marks[candidates[n]] = scratch.edge_masks[n] ? undecided : stays;
-      any_droppable = any_droppable || scratch.edge_masks[n];
+      scratch.marks[t] = mask ? undecided : stays;
+      scratch.triangle_masks[t] = mask;
+      any_droppable = any_droppable || mask;
     }
     if (any_droppable) propagate(candidate_count);
   }
@@ -465,7 +489,6 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
       continue;
     }
     candidates[count] = t;  // compacted in place: n >= count
-    if (culling) scratch.edge_masks[count] = scratch.edge_masks[n];
     scratch.quick_bounds.push_back(d_min);
     scratch.center_distances.push_back(d_center);
     ++count;

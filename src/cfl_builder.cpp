@@ -310,6 +310,9 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
       upper_candidates + upper_candidate_count) {
     upper_candidates[upper_candidate_count++] = center_triangle;
   }
+  // The center's triangle first: it usually gives the smallest U, after which the others mostly stop at
+  // their first corners that reach it. U is a minimum, so the order does not change it.
+  std::swap(*std::find(upper_candidates, upper_candidates + upper_candidate_count, center_triangle), upper_candidates[0]);
   double upper = kInfinity;  // squared
   for (int n = 0; n < upper_candidate_count; ++n) {
     const auto& c = geometry.corners[upper_candidates[n]];

@@ -863,10 +863,12 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
 
   // 3. Flatten: root cells first, then each root cell's descendants in turn; identical lists (same ids,
   //    bounds and depth, so the bounds' unit agrees) stored once.
-  std::int64_t node_count = root_count, leaf_count = 0;
+  std::int64_t node_count = root_count, leaf_count = 0, entry_count = 0, stored_count = 0;
   for (const Subtree& subtree : subtrees) {
     node_count += std::int64_t(subtree.nodes.size()) - 1;
     leaf_count += std::int64_t(subtree.list_length.size());
+    entry_count += std::int64_t(subtree.lists.ids.size());
+    for (std::uint32_t length : subtree.list_length) stored_count += length != RegionTree::kNoList;
   }
   if (node_count >= std::int64_t(RegionTree::kLeafBit) || leaf_count >= std::int64_t(RegionTree::kLeafBit)) {
     throw Error("the regions need " + std::to_string(node_count) + " cells, more than a RegionTree indexes");
@@ -877,6 +879,11 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   tree.leaf_lower_bound.reserve(leaf_count);
   tree.leaf_corner_distance.reserve(leaf_count);
   tree.list_offsets.assign(1, 0);
+  // Every stored list at most once: grown by doubling instead, the list arrays held up to twice their final
+  // size, three times while being copied, next to the subtrees not yet released, and that was the peak.
+  tree.list_offsets.reserve(stored_count + 1);
+  tree.list_entry_ids.reserve(entry_count + 2 * stored_count);
+  tree.list_entry_bounds.reserve(entry_count);
   BuildStatistics& stats = model.statistics;
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> lists_by_hash;
   std::vector<std::uint8_t> list_depth;

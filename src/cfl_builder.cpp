@@ -104,22 +104,23 @@ std::int64_t physicalMemoryBytes() {
   return std::int64_t(pages) * page_size;
 }
 
-// Topology culling data for one edge of one triangle. Every point p in all three half-spaces
-// (p - a) . outward >= 0, (p - a) . (d - a) <= 0 and (p - b) . (d - b) <= 0, where (a, b) is the edge and d
-// the opposite corner, has its closest point of the triangle on the edge: projected into the triangle's
-// plane it lies beyond the edge's line and outside the Voronoi regions of the other two edges' interiors.
-struct EdgeRegion {
-  Eigen::Vector3d a, b, outward, to_d_from_a, to_d_from_b;
-  // Per half-space, the 1-norm and 2-norm of its normal: a cube of half edge h is inside the half-space
-  // exactly when its center clears it by h times the 1-norm (the drop to its lowest corner); the 2-norm
-  // scales the rounding margin.
-  Eigen::Vector3d l1_norms, norms;  // outward, to_d_from_a, to_d_from_b
-  int neighbours_begin = 0, neighbours_end = 0;  // other triangles sharing the edge, in edge_neighbours
-  bool usable = false;
+// Topology culling data of one triangle. Edge e runs from corner a = c[e] to b = c[e + 1], d = c[e + 2] is
+// the opposite corner. Every point p in all three half-spaces (p - a) . outward >= 0, (p - a) . (d - a) <= 0
+// and (p - b) . (d - b) <= 0 has its closest point of the triangle on the edge: projected into the
+// triangle's plane it lies beyond the edge's line and outside the Voronoi regions of the other two edges'
+// interiors. Only the outward normals are kept; the rest is rebuilt from the corners when a cell is tested:
+// a cell reads the corners of its candidates anyway, and keeping it all here took several cache lines per
+// candidate.
+struct TriangleTopology {
+  // Per edge: (b - a) x n, n = (c[1] - c[0]) x (c[2] - c[0]), turned away from d.
+  Eigen::Vector3d outward[3] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  // Edge e's other triangles are edge_neighbours[neighbours[e], neighbours[e + 1]); an empty range (no
+  // neighbour, a repeated vertex, or a degenerate triangle) means the edge never culls.
+  std::int32_t neighbours[4] = {0, 0, 0, 0};
 };
 
 struct Topology {
-  std::vector<std::array<EdgeRegion, 3>> edges;  // per triangle
+  std::vector<TriangleTopology> triangles;
   std::vector<int> edge_neighbours;
 };
 
@@ -131,45 +132,49 @@ Topology makeTopology(const MeshModel& geometry) {
     for (int e = 0; e < 3; ++e) by_edge[key(triangles[t][e], triangles[t][(e + 1) % 3])].push_back(t);
   }
   Topology topology;
-  topology.edges.resize(triangles.size());
+  topology.triangles.resize(triangles.size());
   for (int t = 0; t < int(triangles.size()); ++t) {
     const auto& c = geometry.corners[t];
+    TriangleTopology& entry = topology.triangles[t];
     const Eigen::Vector3d normal = (c[1] - c[0]).cross(c[2] - c[0]);
     const double scale = std::max({(c[1] - c[0]).squaredNorm(), (c[2] - c[1]).squaredNorm(), (c[0] - c[2]).squaredNorm()});
     const bool degenerate = !(normal.norm() > 1e-8 * scale);
     for (int e = 0; e < 3; ++e) {
-      EdgeRegion& region = topology.edges[t][e];
       const int u = triangles[t][e], v = triangles[t][(e + 1) % 3];
+      entry.neighbours[e] = int(topology.edge_neighbours.size());
       if (degenerate || u == v) continue;
-      region.a = c[e];
-      region.b = c[(e + 1) % 3];
-      const Eigen::Vector3d d = c[(e + 2) % 3];
-      Eigen::Vector3d outward = (region.b - region.a).cross(normal);
-      if (outward.dot(d - region.a) > 0) outward = -outward;
-      region.outward = outward;
-      region.to_d_from_a = d - region.a;
-      region.to_d_from_b = d - region.b;
-      region.l1_norms = {outward.lpNorm<1>(), region.to_d_from_a.lpNorm<1>(), region.to_d_from_b.lpNorm<1>()};
-      region.norms = {outward.norm(), region.to_d_from_a.norm(), region.to_d_from_b.norm()};
-      region.neighbours_begin = int(topology.edge_neighbours.size());
+      Eigen::Vector3d outward = (c[(e + 1) % 3] - c[e]).cross(normal);
+      if (outward.dot(c[(e + 2) % 3] - c[e]) > 0) outward = -outward;
+      entry.outward[e] = outward;
       for (int other : by_edge[key(u, v)]) {
         if (other != t) topology.edge_neighbours.push_back(other);
       }
-      region.neighbours_end = int(topology.edge_neighbours.size());
-      region.usable = region.neighbours_end > region.neighbours_begin;
     }
+    entry.neighbours[3] = int(topology.edge_neighbours.size());
   }
   return topology;
 }
 
-// Whether all of the cube of center `center` and half edge `half` lies strictly inside the edge's region,
-// with a margin so that rounding never decides. Each half-space is linear, so its lowest value over the cube
-// is at a corner: the center's value minus the reach.
-bool cellInEdgeRegion(const EdgeRegion& region, const Eigen::Vector3d& center, double half, double margin) {
-  const Eigen::Vector3d reach = half * region.l1_norms + margin * region.norms;
-  return (center - region.a).dot(region.outward) > reach[0] &&
-         (center - region.a).dot(region.to_d_from_a) < -reach[1] &&
-         (center - region.b).dot(region.to_d_from_b) < -reach[2];
+// Whether all of the cube of center `center` and half edge `half` lies strictly inside the region of edge e
+// of the triangle with corners c, with a margin so that rounding never decides. Each half-space is linear, so
+// its lowest value over the cube is at a corner: the center's value minus the reach, half edge times the
+// 1-norm of its normal plus the margin times its 2-norm. The 2-norm (a square root) is taken only when the
+// center clears the 1-norm part, which adding a nonnegative margin can only raise.
+bool cellInEdgeRegion(const std::array<Eigen::Vector3d, 3>& c, const Eigen::Vector3d& outward, int e,
+                      const Eigen::Vector3d& center, double half, double margin) {
+  const Eigen::Vector3d& a = c[e];
+  const Eigen::Vector3d& b = c[(e + 1) % 3];
+  const Eigen::Vector3d& d = c[(e + 2) % 3];
+  auto clears = [&](double value, const Eigen::Vector3d& direction) {
+    const double l1 = direction.lpNorm<1>();
+    if (!(value > half * l1)) return false;
+    return value > half * l1 + margin * direction.norm();
+  };
+  if (!clears((center - a).dot(outward), outward)) return false;
+  const Eigen::Vector3d to_d_from_a = d - a;
+  if (!clears(-(center - a).dot(to_d_from_a), to_d_from_a)) return false;
+  const Eigen::Vector3d to_d_from_b = d - b;
+  return clears(-(center - b).dot(to_d_from_b), to_d_from_b);
 }
 
 // dmin in units of `unit`, rounded down and saturated, so that unit * result <= dmin (a lower bound).
@@ -182,13 +187,20 @@ std::uint8_t quantizeEntryBound(double d_min, double unit) {
 struct ListScratch {
   // Topology culling: marks[t] in [last_mark - 3, last_mark] when triangle t is a candidate of the current
   // voxel, saying whether a test excluded it, it stays, may leave or has left; any other value means not a
-  // candidate. Sized on first use, so that idle workers cost nothing; 4 bytes per triangle per worker.
+  // candidate. Sized on first use, so that idle workers cost nothing; with triangle_masks, 5 bytes per
+  // triangle per worker.
   std::vector<std::uint32_t> marks;
   std::uint32_t last_mark = 0;
-  std::vector<std::uint8_t> edge_masks;  // per candidate: the edges whose region holds the voxel
+  // Per triangle: the edges whose region holds the voxel, read only for undecided candidates.
+  std::vector<std::uint8_t> triangle_masks;
+  std::vector<std::int32_t> pending;     // triangles that left, whose neighbours may follow
   std::vector<std::uint64_t> sort_keys;  // (bound, id)
   std::vector<std::int32_t> candidates;  // of the current voxel, from the Bvh walk
   std::vector<double> quick_bounds;      // per list entry: cubeTriangleQuickBound, before the full bound
+  std::vector<double> center_distances;  // per list entry: its distance from the cell's center
+  // Per entry of the cell's list: its full bound when entry_exact, else its quick bound (finishCellList).
+  std::vector<double> entry_bounds;
+  std::vector<std::uint8_t> entry_exact;
 };
 
 // The default memory limit of the regions: the smaller of half the machine's memory and this much, so that
@@ -252,7 +264,6 @@ struct CellListOutput {
 // (bound, id) and returns its length.
 std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch, const Eigen::Vector3d& min_corner,
                               double size, const int corner_triangle[8], CellListOutput& out) {
-  const double bound_unit = size / 32;
   const MeshModel& geometry = context.geometry;
   const Topology& topology = context.topology;
   const double half = 0.5 * size;
@@ -299,6 +310,9 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
       upper_candidates + upper_candidate_count) {
     upper_candidates[upper_candidate_count++] = center_triangle;
   }
+  // The center's triangle first: it usually gives the smallest U, after which the others mostly stop at
+  // their first corners that reach it. U is a minimum, so the order does not change it.
+  std::swap(*std::find(upper_candidates, upper_candidates + upper_candidate_count, center_triangle), upper_candidates[0]);
   double upper = kInfinity;  // squared
   for (int n = 0; n < upper_candidate_count; ++n) {
     const auto& c = geometry.corners[upper_candidates[n]];
@@ -382,22 +396,40 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   // drops, the second round reaches the same least fixed point as a single round after the tests.
   const bool culling = context.culling && candidate_count > 1;
   std::uint32_t missing = 0, stays = 0, undecided = 0, left = 0;
+  // Whether undecided triangle t may leave now: some edge whose region holds the voxel has a neighbour that
+  // is not undecided.
+  auto mayLeave = [&](int t) {
+    const TriangleTopology& entry = topology.triangles[t];
+    const std::uint8_t mask = scratch.triangle_masks[t];
+    for (int e = 0; e < 3; ++e) {
+      if (!(mask >> e & 1)) continue;
+      for (int m = entry.neighbours[e]; m < entry.neighbours[e + 1]; ++m) {
+        if (scratch.marks[topology.edge_neighbours[m]] != undecided) return true;
+      }
+    }
+    return false;
+  };
+  // The rule only ever turns undecided into left, so its fixed point does not depend on the order: one pass
+  // over the candidates, then only the neighbours of what left, the only triangles whose answer can change.
   auto propagate = [&](std::uint32_t size) {  // over candidates[0, size)
-    for (bool changed = true; changed;) {
-      changed = false;
-      for (std::uint32_t n = 0; n < size; ++n) {
-        if (scratch.marks[candidates[n]] != undecided) continue;
-        bool drop = false;
-        for (int e = 0; e < 3 && !drop; ++e) {
-          if (!(scratch.edge_masks[n] >> e & 1)) continue;
-          const EdgeRegion& region = topology.edges[candidates[n]][e];
-          for (int m = region.neighbours_begin; m < region.neighbours_end && !drop; ++m) {
-            drop = scratch.marks[topology.edge_neighbours[m]] != undecided;
-          }
-        }
-        if (drop) {
-          scratch.marks[candidates[n]] = left;
-          changed = true;
+    std::vector<std::int32_t>& pending = scratch.pending;
+    pending.clear();
+    for (std::uint32_t n = 0; n < size; ++n) {
+      const int t = candidates[n];
+      if (scratch.marks[t] == undecided && mayLeave(t)) {
+        scratch.marks[t] = left;
+        pending.push_back(t);
+      }
+    }
+    while (!pending.empty()) {
+      const int t = pending.back();
+      pending.pop_back();
+      const TriangleTopology& entry = topology.triangles[t];
+      for (int m = entry.neighbours[0]; m < entry.neighbours[3]; ++m) {
+        const int other = topology.edge_neighbours[m];
+        if (scratch.marks[other] == undecided && mayLeave(other)) {
+          scratch.marks[other] = left;
+          pending.push_back(other);
         }
       }
     }
@@ -406,20 +438,26 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   if (culling) {
     if (scratch.marks.empty() || scratch.last_mark > std::numeric_limits<std::uint32_t>::max() - 4) {
       scratch.marks.assign(geometry.mesh.triangles.size(), 0);
+      scratch.triangle_masks.assign(geometry.mesh.triangles.size(), 0);
       scratch.last_mark = 0;
     }
     missing = (scratch.last_mark += 4) - 3;  // excluded by a test; any older mark: never a candidate
     stays = missing + 1;                    // listed, not droppable
     undecided = missing + 2;                // droppable, not yet shown to leave
     left = missing + 3;                     // shown to leave
-    scratch.edge_masks.assign(candidate_count, 0);
     for (std::uint32_t n = 0; n < candidate_count; ++n) {
-      const auto& regions = topology.edges[candidates[n]];
+      const int t = candidates[n];
+      const TriangleTopology& entry = topology.triangles[t];
+      std::uint8_t mask = 0;
       for (int e = 0; e < 3; ++e) {
-        if (regions[e].usable && cellInEdgeRegion(regions[e], center, half, margin)) scratch.edge_masks[n] |= 1 << e;
+        if (entry.neighbours[e + 1] > entry.neighbours[e] &&
+            cellInEdgeRegion(geometry.corners[t], entry.outward[e], e, center, half, margin)) {
+          mask |= std::uint8_t(1 << e);
+        }
       }
-      scratch.marks[candidates[n]] = scratch.edge_masks[n] ? undecided : stays;
-      any_droppable = any_droppable || scratch.edge_masks[n];
+      scratch.marks[t] = mask ? undecided : stays;
+      scratch.triangle_masks[t] = mask;
+      any_droppable = any_droppable || mask;
     }
     if (any_droppable) propagate(candidate_count);
   }
@@ -430,6 +468,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   // either way).
   std::uint32_t count = 0;
   scratch.quick_bounds.clear();
+  scratch.center_distances.clear();
   bool any_excluded = false;
   for (std::uint32_t n = 0; n < candidate_count; ++n) {
     const int t = candidates[n];
@@ -453,46 +492,90 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
       continue;
     }
     candidates[count] = t;  // compacted in place: n >= count
-    if (culling) scratch.edge_masks[count] = scratch.edge_masks[n];
     scratch.quick_bounds.push_back(d_min);
+    scratch.center_distances.push_back(d_center);
     ++count;
   }
   if (culling && any_droppable && any_excluded) propagate(count);
-  // What culling kept, through the full bound. The lower bound of the voxel: the closest triangle to any
-  // of its points is listed, so the smallest listed dmin bounds the voxel-mesh distance from below.
+  // What culling kept. The full bound can only exclude an entry whose distance from the center exceeds
+  // upper_bound, less rounding (it bounds the cube-triangle distance, which the center's bounds); the others
+  // are listed whatever it says, so their full bounds wait for finishCellList, which only the leaves that
+  // store their list call: the cells that split or store none need only the list's length, its triangles and
+  // its lower bound.
   const std::size_t list_begin = out.ids.size();
-  double lower = kInfinity;
+  const double certain = upper_bound - 1e-9 * (center.cwiseAbs().maxCoeff() + size + upper_bound);
+  scratch.entry_bounds.clear();
+  scratch.entry_exact.clear();
   for (std::uint32_t n = 0; n < count; ++n) {
     const int t = candidates[n];
     if (culling && scratch.marks[t] == left) continue;
-    const auto& c = geometry.corners[t];
-    const double d_min =
-        detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], scratch.quick_bounds[n]);
-    if (d_min > upper_bound) continue;
-    lower = std::min(lower, d_min);
+    double d_min = scratch.quick_bounds[n];
+    const bool exact = !(scratch.center_distances[n] < certain);
+    if (exact) {
+      const auto& c = geometry.corners[t];
+      d_min = detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], d_min);
+      if (d_min > upper_bound) continue;
+    }
     out.ids.push_back(t);
-    out.bounds.push_back(quantizeEntryBound(d_min, bound_unit));
+    scratch.entry_bounds.push_back(d_min);
+    scratch.entry_exact.push_back(exact);
   }
   count = static_cast<std::uint32_t>(out.ids.size() - list_begin);
-  std::int32_t* list = out.ids.data() + list_begin;
-  std::uint8_t* bounds = out.bounds.data() + list_begin;
-  // The query scans a list in this order and stops at the first entry whose bound reaches its best
-  // distance so far.
-  scratch.sort_keys.clear();
+  // The lower bound of the voxel: the closest triangle to any of its points is listed, so the smallest
+  // listed full bound bounds the voxel-mesh distance from below. A quick bound never exceeds its full
+  // bound, so only the entries whose quick bound is below the smallest full bound so far need theirs.
+  double lower = kInfinity;
   for (std::uint32_t n = 0; n < count; ++n) {
-    scratch.sort_keys.push_back(std::uint64_t(bounds[n]) << 32 | std::uint32_t(list[n]));
+    if (scratch.entry_exact[n]) lower = std::min(lower, scratch.entry_bounds[n]);
   }
-  std::sort(scratch.sort_keys.begin(), scratch.sort_keys.end());
-  for (std::uint32_t n = 0; n < count; ++n) {
-    bounds[n] = static_cast<std::uint8_t>(scratch.sort_keys[n] >> 32);
-    list[n] = static_cast<std::int32_t>(scratch.sort_keys[n] & 0xffffffffu);
+  for (;;) {
+    std::uint32_t next = count;
+    for (std::uint32_t n = 0; n < count; ++n) {
+      if (!scratch.entry_exact[n] && scratch.entry_bounds[n] < lower &&
+          (next == count || scratch.entry_bounds[n] < scratch.entry_bounds[next])) {
+        next = n;
+      }
+    }
+    if (next == count) break;
+    const auto& c = geometry.corners[out.ids[list_begin + next]];
+    scratch.entry_bounds[next] =
+        detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], scratch.entry_bounds[next]);
+    scratch.entry_exact[next] = true;
+    lower = std::min(lower, scratch.entry_bounds[next]);
   }
   // Rounded down, past the rounding of the bounds' sums too, which scales with the coordinates rather than
   // with the distance: a cell touching the mesh must not get a positive bound from rounding alone.
   const double rounding = 1e-15 * (center.cwiseAbs().maxCoeff() + size);
   out.lower_bound = std::max(0.0, std::nextafter(lower, 0.0) * (1 - 1e-12) - rounding);
   return count;
+}
 
+// Completes the list computeCellList just appended (its last `count` ids) for a leaf that stores it: the
+// full bound of every entry, as entry bounds in units of size / 32, and the order a query scans, by
+// (bound, id): it stops at the first entry whose bound reaches its best distance so far.
+void finishCellList(const BuildContext& context, ListScratch& scratch, const Eigen::Vector3d& min_corner,
+                    double size, std::uint32_t count, CellListOutput& out) {
+  const double half = 0.5 * size;
+  const Eigen::Vector3d center = min_corner + Eigen::Vector3d::Constant(half);
+  const double bound_unit = size / 32;
+  const std::size_t list_begin = out.ids.size() - count;
+  std::int32_t* list = out.ids.data() + list_begin;
+  scratch.sort_keys.clear();
+  for (std::uint32_t n = 0; n < count; ++n) {
+    double d_min = scratch.entry_bounds[n];
+    if (!scratch.entry_exact[n]) {
+      const auto& c = context.geometry.corners[list[n]];
+      d_min = detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], d_min);
+    }
+    scratch.sort_keys.push_back(std::uint64_t(quantizeEntryBound(d_min, bound_unit)) << 32 | std::uint32_t(list[n]));
+  }
+  std::sort(scratch.sort_keys.begin(), scratch.sort_keys.end());
+  out.bounds.resize(list_begin + count);
+  std::uint8_t* bounds = out.bounds.data() + list_begin;
+  for (std::uint32_t n = 0; n < count; ++n) {
+    bounds[n] = static_cast<std::uint8_t>(scratch.sort_keys[n] >> 32);
+    list[n] = static_cast<std::int32_t>(scratch.sort_keys[n] & 0xffffffffu);
+  }
 }
 
 // The 3 x 3 x 3 lattice of a cell being split: its corners, face and edge midpoints and center, point
@@ -583,7 +666,9 @@ class SubtreeBuilder {
     out.nodes[slot] = RegionTree::kLeafBit | leaf;
     const bool near = out.lists.lower_bound <= kNearCells * size;
     const bool stored = !adaptive_ || length <= (near ? kLongestNearList : kLongestFarList);
-    if (!stored) {
+    if (stored) {
+      finishCellList(context_, scratch, min_corner, size, length, out.lists);
+    } else {
       out.lists.ids.resize(begin);
       out.lists.bounds.resize(begin);
     }
@@ -778,10 +863,12 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
 
   // 3. Flatten: root cells first, then each root cell's descendants in turn; identical lists (same ids,
   //    bounds and depth, so the bounds' unit agrees) stored once.
-  std::int64_t node_count = root_count, leaf_count = 0;
+  std::int64_t node_count = root_count, leaf_count = 0, entry_count = 0, stored_count = 0;
   for (const Subtree& subtree : subtrees) {
     node_count += std::int64_t(subtree.nodes.size()) - 1;
     leaf_count += std::int64_t(subtree.list_length.size());
+    entry_count += std::int64_t(subtree.lists.ids.size());
+    for (std::uint32_t length : subtree.list_length) stored_count += length != RegionTree::kNoList;
   }
   if (node_count >= std::int64_t(RegionTree::kLeafBit) || leaf_count >= std::int64_t(RegionTree::kLeafBit)) {
     throw Error("the regions need " + std::to_string(node_count) + " cells, more than a RegionTree indexes");
@@ -792,6 +879,11 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   tree.leaf_lower_bound.reserve(leaf_count);
   tree.leaf_corner_distance.reserve(leaf_count);
   tree.list_offsets.assign(1, 0);
+  // Every stored list at most once: grown by doubling instead, the list arrays held up to twice their final
+  // size, three times while being copied, next to the subtrees not yet released, and that was the peak.
+  tree.list_offsets.reserve(stored_count + 1);
+  tree.list_entry_ids.reserve(entry_count + 2 * stored_count);
+  tree.list_entry_bounds.reserve(entry_count);
   BuildStatistics& stats = model.statistics;
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> lists_by_hash;
   std::vector<std::uint8_t> list_depth;

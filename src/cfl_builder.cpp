@@ -198,6 +198,11 @@ struct ListScratch {
   std::vector<std::int32_t> candidates;  // of the current voxel, from the Bvh walk
   std::vector<double> quick_bounds;      // per list entry: cubeTriangleQuickBound, before the full bound
   std::vector<double> center_distances;  // per list entry: its distance from the cell's center
+  // Per candidate of a cell that cannot split: the exclusion tests' verdict when the gather already ran them
+  // (kNotTested, kExcluded or kKept), and for a kept one its quick bound and distance from the center.
+  std::vector<std::uint8_t> early_state;
+  std::vector<double> early_quick_bounds;
+  std::vector<double> early_center_distances;
   // Per entry of the cell's list: its full bound when entry_exact, else its quick bound (finishCellList).
   std::vector<double> entry_bounds;
   std::vector<std::uint8_t> entry_exact;
@@ -398,6 +403,55 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
 
   // Triangles that may belong: a Bvh walk that skips nodes whose box is farther than U from the voxel's
   // cube (then dmin > U for all below), or that the cone test excludes as a whole.
+  // The exclusion tests of one candidate: whether they exclude it, else its quick bound and center distance.
+  auto exclusionTests = [&](int t, double& d_min, double& d_center) {
+    const auto& c = geometry.corners[t];
+    Eigen::Vector3d closest;
+    d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
+    bool excluded = d_center - half_diagonal > upper_bound;
+    d_min = 0;
+    if (!excluded) {
+      d_min = detail::cubeTriangleQuickBound(center, half, c[0], c[1], c[2], closest);
+      excluded = d_min > upper_bound;
+    }
+    if (!excluded && cone_usable && t != center_triangle) {
+      const Eigen::Vector4d& sphere_i = geometry.spheres[t];
+      excluded = coneExcludes(d_center, sphere_i.head<3>(), sphere_i[3]);
+    }
+    return excluded;
+  };
+  // Entries listed whatever comes after: not droppable (no edge region holds the cell, so culling keeps them
+  // whatever the other candidates do), and close enough to the center that the full bound cannot exclude
+  // them (see the full bounds below). A cell that cannot split counts them as the walk finds them, and stops
+  // once they outnumber what it could store: the walk, culling and the tests of the rest are never needed.
+  const double certain = upper_bound - 1e-9 * (center.cwiseAbs().maxCoeff() + size + upper_bound);
+  const bool count_early = longest_stored != RegionTree::kNoList;
+  std::uint32_t certain_count = 0;
+  enum : std::uint8_t { kNotTested, kExcluded, kKept };
+  scratch.early_state.clear();
+  scratch.early_quick_bounds.clear();
+  scratch.early_center_distances.clear();
+  auto certainlyListed = [&](int t) {
+    if (context.culling) {
+      const TriangleTopology& entry = topology.triangles[t];
+      for (int e = 0; e < 3; ++e) {
+        if (entry.neighbours[e + 1] > entry.neighbours[e] &&
+            cellInEdgeRegion(geometry.corners[t], entry.outward[e], e, center, half, margin)) {
+          scratch.early_state.push_back(kNotTested);
+          scratch.early_quick_bounds.push_back(0);
+          scratch.early_center_distances.push_back(0);
+          return false;
+        }
+      }
+    }
+    double d_min, d_center;
+    const bool excluded = exclusionTests(t, d_min, d_center);
+    scratch.early_state.push_back(excluded ? kExcluded : kKept);
+    scratch.early_quick_bounds.push_back(d_min);
+    scratch.early_center_distances.push_back(d_center);
+    return !excluded && d_center < certain;
+  };
+
   std::vector<std::int32_t>& candidates = scratch.candidates;
   candidates.clear();
   const auto& nodes = geometry.bvh.nodes;
@@ -413,6 +467,14 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     if (node.isLeaf()) {
       candidates.insert(candidates.end(), geometry.bvh.triangle_ids.begin() + node.first,
                         geometry.bvh.triangle_ids.begin() + node.first + node.count);
+      if (count_early) {
+        for (std::size_t n = candidates.size() - node.count; n < candidates.size(); ++n) {
+          if (certainlyListed(candidates[n]) && ++certain_count > longest_stored) {
+            out.lower_bound = std::max(0.0, center_lower);
+            return RegionTree::kNoList;
+          }
+        }
+      }
     } else {
       stack[top++] = node.first;
       stack[top++] = node.first + 1;
@@ -510,25 +572,17 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   scratch.quick_bounds.clear();
   scratch.center_distances.clear();
   bool any_excluded = false;
-  // Entries listed whatever comes after: not droppable, and close enough to the center that the full bound
-  // cannot exclude them (see `certain` below).
-  const double certain = upper_bound - 1e-9 * (center.cwiseAbs().maxCoeff() + size + upper_bound);
-  std::uint32_t certain_count = 0;
   for (std::uint32_t n = 0; n < candidate_count; ++n) {
     const int t = candidates[n];
     if (culling && scratch.marks[t] == left) continue;
-    const auto& c = geometry.corners[t];
-    Eigen::Vector3d closest;
-    const double d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
-    bool excluded = d_center - half_diagonal > upper_bound;
-    double d_min = 0;
-    if (!excluded) {
-      d_min = detail::cubeTriangleQuickBound(center, half, c[0], c[1], c[2], closest);
-      excluded = d_min > upper_bound;
-    }
-    if (!excluded && cone_usable && t != center_triangle) {
-      const Eigen::Vector4d& sphere_i = geometry.spheres[t];
-      excluded = coneExcludes(d_center, sphere_i.head<3>(), sphere_i[3]);
+    double d_min, d_center;
+    bool excluded;
+    if (count_early && scratch.early_state[n] != kNotTested) {
+      excluded = scratch.early_state[n] == kExcluded;
+      d_min = scratch.early_quick_bounds[n];
+      d_center = scratch.early_center_distances[n];
+    } else {
+      excluded = exclusionTests(t, d_min, d_center);
     }
     if (excluded) {
       if (culling) scratch.marks[t] = missing;
@@ -539,10 +593,6 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     scratch.quick_bounds.push_back(d_min);
     scratch.center_distances.push_back(d_center);
     ++count;
-    if (d_center < certain && (!culling || scratch.marks[t] == stays) && ++certain_count > longest_stored) {
-      out.lower_bound = std::max(0.0, center_lower);
-      return RegionTree::kNoList;
-    }
   }
   if (culling && any_droppable && any_excluded) propagate(count);
   // What culling kept. The full bound can only exclude an entry whose distance from the center exceeds

@@ -476,8 +476,12 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
         }
       }
     } else {
-      stack[top++] = node.first;
-      stack[top++] = node.first + 1;
+      // Counting, the nearer child first: triangles nearer the center are the likelier to be certain, so the
+      // count passes the longest storable list sooner. Either order lists the same triangles.
+      const bool swap = count_early && (nodes[node.first].center - center).squaredNorm() <
+                                           (nodes[node.first + 1].center - center).squaredNorm();
+      stack[top++] = node.first + swap;
+      stack[top++] = node.first + !swap;
     }
   }
   const std::uint32_t candidate_count = static_cast<std::uint32_t>(candidates.size());

@@ -198,6 +198,11 @@ struct ListScratch {
   std::vector<std::int32_t> candidates;  // of the current voxel, from the Bvh walk
   std::vector<double> quick_bounds;      // per list entry: cubeTriangleQuickBound, before the full bound
   std::vector<double> center_distances;  // per list entry: its distance from the cell's center
+  // Per candidate of a cell that cannot split: the exclusion tests' verdict when the gather already ran them
+  // (kNotTested, kExcluded or kKept), and for a kept one its quick bound and distance from the center.
+  std::vector<std::uint8_t> early_state;
+  std::vector<double> early_quick_bounds;
+  std::vector<double> early_center_distances;
   // Per entry of the cell's list: its full bound when entry_exact, else its quick bound (finishCellList).
   std::vector<double> entry_bounds;
   std::vector<std::uint8_t> entry_exact;
@@ -241,6 +246,27 @@ std::int64_t capacityBytes(const std::vector<T>& v) {
 }
 
 
+// When to split a cell: its list is longer than kListTarget, it is larger than kSmallestCell times the mean
+// edge of the triangles it lists (smaller cells would not shorten a list of triangles around one vertex, and
+// would multiply the leaves a query visits and the cache lines it reads: at 1.25 edges, the uniform grid's
+// best voxel, the rock's short-range queries took 1.3x to 1.6x the time they take at 2), and it is
+// larger than kFarCellRatio times its distance from the mesh (far away, a list shortens only in cells that
+// shrink with the distance, and far cells serve only far queries, which the Bvh bounds mostly answer).
+constexpr std::uint32_t kListTarget = 8;
+constexpr double kSmallestCell = 2;
+constexpr double kFarCellRatio = 0.5;
+// A leaf whose list stays longer than this stores none (RegionTree::kNoList): scanning it would cost more
+// than testing what falls there against the Bvh, and storing it more memory than the rest of the model.
+// Next to the mesh (a leaf no farther from it than kNearCells edges) lists are what short-range queries
+// scan, and the entry bounds cut most of a long one short; a thin plate's leaves list both faces. Farther
+// out a leaf serves only farther queries, which its lower bound mostly dismisses. A query meeting a leaf
+// without a list continues on the Bvhs, which near the mesh costs more than a long list: on the bunny,
+// caps of 32 within one edge doubled the short-range query time.
+constexpr double kNearCells = 4;
+constexpr std::uint32_t kLongestNearList = 256;
+constexpr std::uint32_t kLongestFarList = 64;
+constexpr int kDeepest = 20;  // levels below the root, within RegionTree::kMaxDepth
+
 // What every cell's list computation reads.
 struct BuildContext {
   const MeshModel& geometry;
@@ -262,8 +288,15 @@ struct CellListOutput {
 // is farther than U from V holds none that belong), unless the cone test shows c's nearest triangle strictly
 // closer everywhere in V, and unless topology culling removes it. Appends the list to `out` sorted by
 // (bound, id) and returns its length.
+//
+// `parent_lower` is a lower bound on the distance from the cell to the mesh (0 if none). When the cell's
+// center shows it so far from the mesh that it cannot split, and more than the longest list it could store
+// (kLongestNearList or kLongestFarList, as the same bound shows) are certain to stay on its list, the rest
+// of the list is never needed: returns RegionTree::kNoList, appends nothing and leaves in out.lower_bound
+// the center's bound, looser than the listed triangles' but enough for a leaf that queries pass to the Bvh.
 std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch, const Eigen::Vector3d& min_corner,
-                              double size, const int corner_triangle[8], CellListOutput& out) {
+                              double size, const int corner_triangle[8], double parent_lower, bool adaptive,
+                              CellListOutput& out) {
   const MeshModel& geometry = context.geometry;
   const Topology& topology = context.topology;
   const double half = 0.5 * size;
@@ -326,6 +359,18 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   const double upper_bound = std::nextafter(std::sqrt(upper), kInfinity) * (1 + 1e-12);
   const double upper_bound_squared = upper_bound * upper_bound;
   const double center_distance = std::sqrt(center_squared);
+  // The distance is 1-Lipschitz, so no point of the cell is nearer the mesh than center_distance less the
+  // half diagonal; rounded down like the listed bound below, and never below what the parent showed.
+  const double rounding = 1e-15 * (center.cwiseAbs().maxCoeff() + size);
+  const double center_lower = std::max(
+      parent_lower, std::nextafter(center_distance - half_diagonal, 0.0) * (1 - 1e-12) -
+                        1e-12 * (center_distance + half_diagonal) - rounding);
+  // A cell no larger than kFarCellRatio times any lower bound never splits; past kNearCells edges it is far
+  // whatever its listed bound, and within, the near cap is the larger, so exceeding it means no list either way.
+  const std::uint32_t longest_stored =
+      adaptive && size <= kFarCellRatio * center_lower
+          ? (center_lower > kNearCells * size ? kLongestFarList : kLongestNearList)
+          : RegionTree::kNoList;
   // Cone test. For p in the voxel (within half_diagonal of the center), f(p) = dist(p, i) - dist(p, k)
   // with k = center_triangle changes at most |u_i - u_k| per unit length, u being the unit direction
   // from a triangle's closest point to p. While the voxel's ball stays clear of a sphere around a
@@ -358,6 +403,55 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
 
   // Triangles that may belong: a Bvh walk that skips nodes whose box is farther than U from the voxel's
   // cube (then dmin > U for all below), or that the cone test excludes as a whole.
+  // The exclusion tests of one candidate: whether they exclude it, else its quick bound and center distance.
+  auto exclusionTests = [&](int t, double& d_min, double& d_center) {
+    const auto& c = geometry.corners[t];
+    Eigen::Vector3d closest;
+    d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
+    bool excluded = d_center - half_diagonal > upper_bound;
+    d_min = 0;
+    if (!excluded) {
+      d_min = detail::cubeTriangleQuickBound(center, half, c[0], c[1], c[2], closest);
+      excluded = d_min > upper_bound;
+    }
+    if (!excluded && cone_usable && t != center_triangle) {
+      const Eigen::Vector4d& sphere_i = geometry.spheres[t];
+      excluded = coneExcludes(d_center, sphere_i.head<3>(), sphere_i[3]);
+    }
+    return excluded;
+  };
+  // Entries listed whatever comes after: not droppable (no edge region holds the cell, so culling keeps them
+  // whatever the other candidates do), and close enough to the center that the full bound cannot exclude
+  // them (see the full bounds below). A cell that cannot split counts them as the walk finds them, and stops
+  // once they outnumber what it could store: the walk, culling and the tests of the rest are never needed.
+  const double certain = upper_bound - 1e-9 * (center.cwiseAbs().maxCoeff() + size + upper_bound);
+  const bool count_early = longest_stored != RegionTree::kNoList;
+  std::uint32_t certain_count = 0;
+  enum : std::uint8_t { kNotTested, kExcluded, kKept };
+  scratch.early_state.clear();
+  scratch.early_quick_bounds.clear();
+  scratch.early_center_distances.clear();
+  auto certainlyListed = [&](int t) {
+    if (context.culling) {
+      const TriangleTopology& entry = topology.triangles[t];
+      for (int e = 0; e < 3; ++e) {
+        if (entry.neighbours[e + 1] > entry.neighbours[e] &&
+            cellInEdgeRegion(geometry.corners[t], entry.outward[e], e, center, half, margin)) {
+          scratch.early_state.push_back(kNotTested);
+          scratch.early_quick_bounds.push_back(0);
+          scratch.early_center_distances.push_back(0);
+          return false;
+        }
+      }
+    }
+    double d_min, d_center;
+    const bool excluded = exclusionTests(t, d_min, d_center);
+    scratch.early_state.push_back(excluded ? kExcluded : kKept);
+    scratch.early_quick_bounds.push_back(d_min);
+    scratch.early_center_distances.push_back(d_center);
+    return !excluded && d_center < certain;
+  };
+
   std::vector<std::int32_t>& candidates = scratch.candidates;
   candidates.clear();
   const auto& nodes = geometry.bvh.nodes;
@@ -373,9 +467,21 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     if (node.isLeaf()) {
       candidates.insert(candidates.end(), geometry.bvh.triangle_ids.begin() + node.first,
                         geometry.bvh.triangle_ids.begin() + node.first + node.count);
+      if (count_early) {
+        for (std::size_t n = candidates.size() - node.count; n < candidates.size(); ++n) {
+          if (certainlyListed(candidates[n]) && ++certain_count > longest_stored) {
+            out.lower_bound = std::max(0.0, center_lower);
+            return RegionTree::kNoList;
+          }
+        }
+      }
     } else {
-      stack[top++] = node.first;
-      stack[top++] = node.first + 1;
+      // Counting, the nearer child first: triangles nearer the center are the likelier to be certain, so the
+      // count passes the longest storable list sooner. Either order lists the same triangles.
+      const bool swap = count_early && (nodes[node.first].center - center).squaredNorm() <
+                                           (nodes[node.first + 1].center - center).squaredNorm();
+      stack[top++] = node.first + swap;
+      stack[top++] = node.first + !swap;
     }
   }
   const std::uint32_t candidate_count = static_cast<std::uint32_t>(candidates.size());
@@ -473,18 +579,14 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   for (std::uint32_t n = 0; n < candidate_count; ++n) {
     const int t = candidates[n];
     if (culling && scratch.marks[t] == left) continue;
-    const auto& c = geometry.corners[t];
-    Eigen::Vector3d closest;
-    const double d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
-    bool excluded = d_center - half_diagonal > upper_bound;
-    double d_min = 0;
-    if (!excluded) {
-      d_min = detail::cubeTriangleQuickBound(center, half, c[0], c[1], c[2], closest);
-      excluded = d_min > upper_bound;
-    }
-    if (!excluded && cone_usable && t != center_triangle) {
-      const Eigen::Vector4d& sphere_i = geometry.spheres[t];
-      excluded = coneExcludes(d_center, sphere_i.head<3>(), sphere_i[3]);
+    double d_min, d_center;
+    bool excluded;
+    if (count_early && scratch.early_state[n] != kNotTested) {
+      excluded = scratch.early_state[n] == kExcluded;
+      d_min = scratch.early_quick_bounds[n];
+      d_center = scratch.early_center_distances[n];
+    } else {
+      excluded = exclusionTests(t, d_min, d_center);
     }
     if (excluded) {
       if (culling) scratch.marks[t] = missing;
@@ -503,7 +605,6 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   // store their list call: the cells that split or store none need only the list's length, its triangles and
   // its lower bound.
   const std::size_t list_begin = out.ids.size();
-  const double certain = upper_bound - 1e-9 * (center.cwiseAbs().maxCoeff() + size + upper_bound);
   scratch.entry_bounds.clear();
   scratch.entry_exact.clear();
   for (std::uint32_t n = 0; n < count; ++n) {
@@ -545,7 +646,6 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   }
   // Rounded down, past the rounding of the bounds' sums too, which scales with the coordinates rather than
   // with the distance: a cell touching the mesh must not get a positive bound from rounding alone.
-  const double rounding = 1e-15 * (center.cwiseAbs().maxCoeff() + size);
   out.lower_bound = std::max(0.0, std::nextafter(lower, 0.0) * (1 - 1e-12) - rounding);
   return count;
 }
@@ -617,27 +717,6 @@ float lowerFloat(double x) {
   return f;
 }
 
-// When to split a cell: its list is longer than kListTarget, it is larger than kSmallestCell times the mean
-// edge of the triangles it lists (smaller cells would not shorten a list of triangles around one vertex, and
-// would multiply the leaves a query visits and the cache lines it reads: at 1.25 edges, the uniform grid's
-// best voxel, the rock's short-range queries took 1.3x to 1.6x the time they take at 2), and it is
-// larger than kFarCellRatio times its distance from the mesh (far away, a list shortens only in cells that
-// shrink with the distance, and far cells serve only far queries, which the Bvh bounds mostly answer).
-constexpr std::uint32_t kListTarget = 8;
-constexpr double kSmallestCell = 2;
-constexpr double kFarCellRatio = 0.5;
-// A leaf whose list stays longer than this stores none (RegionTree::kNoList): scanning it would cost more
-// than testing what falls there against the Bvh, and storing it more memory than the rest of the model.
-// Next to the mesh (a leaf no farther from it than kNearCells edges) lists are what short-range queries
-// scan, and the entry bounds cut most of a long one short; a thin plate's leaves list both faces. Farther
-// out a leaf serves only farther queries, which its lower bound mostly dismisses. A query meeting a leaf
-// without a list continues on the Bvhs, which near the mesh costs more than a long list: on the bunny,
-// caps of 32 within one edge doubled the short-range query time.
-constexpr double kNearCells = 4;
-constexpr std::uint32_t kLongestNearList = 256;
-constexpr std::uint32_t kLongestFarList = 64;
-constexpr int kDeepest = 20;  // levels below the root, within RegionTree::kMaxDepth
-
 // Shared across the root cells' builds: the bytes committed so far, against the memory limit.
 struct Budget {
   std::atomic<std::int64_t> bytes{0};
@@ -652,20 +731,22 @@ class SubtreeBuilder {
       : context_(context), triangle_edge_(triangle_edge), budget_(budget), adaptive_(adaptive) {}
 
   // Builds the cell at `slot` of out.nodes and, when it splits, its descendants.
-  void build(ListScratch& scratch, const Eigen::Vector3d& min_corner, double size, int depth,
+  // parent_lower: a lower bound on the cell's distance to the mesh, its parent's (0 for a root cell).
+  void build(ListScratch& scratch, const Eigen::Vector3d& min_corner, double size, int depth, double parent_lower,
              const double corner_distance[8], const int corner_triangle[8], std::uint32_t slot, Subtree& out) const {
     const std::size_t begin = out.lists.ids.size();
-    const std::uint32_t length = computeCellList(context_, scratch, min_corner, size, corner_triangle, out.lists);
-    if (shouldSplit(out, begin, length, size, depth)) {
+    const std::uint32_t length =
+        computeCellList(context_, scratch, min_corner, size, corner_triangle, parent_lower, adaptive_, out.lists);
+    if (length != RegionTree::kNoList && shouldSplit(out, begin, length, size, depth)) {
       out.lists.ids.resize(begin);
       out.lists.bounds.resize(begin);
-      split(scratch, min_corner, size, depth, corner_distance, corner_triangle, slot, out);
+      split(scratch, min_corner, size, depth, out.lists.lower_bound, corner_distance, corner_triangle, slot, out);
       return;
     }
     const std::uint32_t leaf = static_cast<std::uint32_t>(out.list_length.size());
     out.nodes[slot] = RegionTree::kLeafBit | leaf;
     const bool near = out.lists.lower_bound <= kNearCells * size;
-    const bool stored = !adaptive_ || length <= (near ? kLongestNearList : kLongestFarList);
+    const bool stored = length != RegionTree::kNoList && (!adaptive_ || length <= (near ? kLongestNearList : kLongestFarList));
     if (stored) {
       finishCellList(context_, scratch, min_corner, size, length, out.lists);
     } else {
@@ -701,7 +782,7 @@ class SubtreeBuilder {
     return true;
   }
 
-  void split(ListScratch& scratch, const Eigen::Vector3d& min_corner, double size, int depth,
+  void split(ListScratch& scratch, const Eigen::Vector3d& min_corner, double size, int depth, double lower,
              const double corner_distance[8], const int corner_triangle[8], std::uint32_t slot, Subtree& out) const {
     Lattice lattice;
     const double half = 0.5 * size;
@@ -736,7 +817,7 @@ class SubtreeBuilder {
         child_distance[n] = lattice.distance[index];
         child_triangle[n] = lattice.triangle[index];
       }
-      build(scratch, min_corner + half * Eigen::Vector3d(ox, oy, oz), half, depth + 1, child_distance,
+      build(scratch, min_corner + half * Eigen::Vector3d(ox, oy, oz), half, depth + 1, lower, child_distance,
             child_triangle, first + octant, out);
     }
   }
@@ -853,7 +934,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       Subtree& out = subtrees[r];
       out.nodes.assign(1, 0);
       builder.build(scratches.local(), tree.origin + tree.root_size * Eigen::Vector3d(i, j, k),
-                                    tree.root_size, 0, corner_distance, corner_triangle, 0, out);
+                                    tree.root_size, 0, 0.0, corner_distance, corner_triangle, 0, out);
       ++done;
       cell_ticker.tick();
     }, tbb::simple_partitioner());

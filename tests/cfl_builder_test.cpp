@@ -287,6 +287,32 @@ TEST(CflBuilder, ListsAreConservativeOnTheBunnyAndWithOtherPaddings) {
   }
 }
 
+// A far leaf may decide it stores no list before its list is complete, and then keeps a lower bound from
+// its center's distance instead of its listed triangles': every such leaf, not just the sampled ones, must
+// keep it below the distance of each of its corners and of its center.
+TEST(CflBuilder, LeavesWithoutAListKeepAValidLowerBound) {
+  const TriangleMesh bunny = test::loadBunny();
+  const CflModel model = buildCflModel(bunny, options(0, true));
+  const RegionTree& tree = model.regions;
+  const double diagonal = boundingBox(bunny).diagonal();
+  int without = 0, failures = 0;
+  for (const LeafBox& leaf : allLeaves(tree)) {
+    if (tree.hasList(leaf.leaf)) continue;
+    ++without;
+    for (int n = 0; n < 9; ++n) {
+      const Eigen::Vector3d p = n == 8 ? Eigen::Vector3d(leaf.min.array() + 0.5 * leaf.size)
+                                       : Eigen::Vector3d(leaf.min + leaf.size * Eigen::Vector3d(n & 1, (n >> 1) & 1, n >> 2));
+      const double truth = test::referencePointMeshDistance(bunny, p);
+      if (!(tree.leaf_lower_bound[leaf.leaf] <= truth * (1 + 1e-12) + 1e-15 * diagonal) && ++failures <= 5) {
+        ADD_FAILURE() << "leaf " << leaf.leaf << " lower bound " << tree.leaf_lower_bound[leaf.leaf]
+                      << " exceeds the distance " << truth << " of (" << p.transpose() << ")";
+      }
+    }
+  }
+  EXPECT_GT(without, 0);
+  EXPECT_EQ(failures, 0);
+}
+
 TEST(CflBuilder, CornerDistancesMatchTheReferenceAndNeverExceedIt) {
   test::Rng rng(5);
   for (const NamedMesh& named : testMeshes()) {

@@ -148,22 +148,61 @@ void pointTriangleSquaredDistances4(const Vec& p, const std::array<Vec, 3>* cons
   }
 }
 
+namespace {
+
+// The point query's two bounds on four triangles at once, in the scalar scans' operations and order: a
+// triangle passes unless |p - center| >= radius + best (its bounding sphere) or its plane lies at least
+// `best` from p (zero for a sliver, which then passes), each bound shrunk by far more than its rounding.
+// One point's lanes, set once per query.
+struct PointBoundLanes {
+  Lanes3 p;
+  __m256d shrink, slack_scale, slack_unit, sign_bit;
+
+  explicit PointBoundLanes(const Vec& point)
+      : p{_mm256_set1_pd(point.x()), _mm256_set1_pd(point.y()), _mm256_set1_pd(point.z())},
+        shrink(_mm256_set1_pd(1 - 1e-12)),
+        slack_scale(_mm256_set1_pd(std::abs(point.x()) + std::abs(point.y()) + std::abs(point.z()))),
+        slack_unit(_mm256_set1_pd(1e-13)),
+        sign_bit(_mm256_set1_pd(-0.0)) {}
+
+  // The lanes (bit k for triangle k, all four tested) whose sphere (center c, radius r) and plane (normal n,
+  // offset w) both let them through at the best distance `best`.
+  int passing(const Lanes3& c, __m256d r, const Lanes3& n, __m256d w, double best) const {
+    const Lanes3 offset = sub(p, c);
+    const __m256d reach_squared = dot(offset, offset);
+    const __m256d rim = _mm256_add_pd(r, _mm256_set1_pd(best));
+    const __m256d near_sphere =
+        _mm256_cmp_pd(_mm256_mul_pd(reach_squared, shrink), _mm256_mul_pd(rim, rim), _CMP_NGE_UQ);
+    const __m256d along_normal = _mm256_sub_pd(dot(n, p), w);
+    const __m256d slack =
+        _mm256_mul_pd(slack_unit, _mm256_add_pd(_mm256_add_pd(slack_scale, _mm256_andnot_pd(sign_bit, w)), r));
+    const __m256d height = _mm256_sub_pd(_mm256_andnot_pd(sign_bit, along_normal), slack);
+    const __m256d near_plane = _mm256_cmp_pd(_mm256_mul_pd(height, shrink), _mm256_set1_pd(best), _CMP_NGE_UQ);
+    return _mm256_movemask_pd(_mm256_and_pd(near_sphere, near_plane));
+  }
+};
+
+// Four spheres or planes (x, y, z, w each) as lanes: x, y, z and w of the four.
+inline void loadLanes(const Eigen::Vector4d& a, const Eigen::Vector4d& b, const Eigen::Vector4d& c,
+                      const Eigen::Vector4d& d, Lanes3& xyz, __m256d& w) {
+  xyz.x = _mm256_loadu_pd(a.data());
+  xyz.y = _mm256_loadu_pd(b.data());
+  xyz.z = _mm256_loadu_pd(c.data());
+  w = _mm256_loadu_pd(d.data());
+  transpose(xyz.x, xyz.y, xyz.z, w);
+}
+
+}  // namespace
+
 void scanPointList(const Vec& p, const PointListScan& list, const MeshModel& geometry, double& best_squared,
                    int& best_triangle, Vec& closest) {
-  // As the generic scan: bounds shrunk by far more than their rounding before they may skip an entry.
-  constexpr double kShrink = 1 - 1e-12;
   const Eigen::Vector4d* spheres = geometry.spheres.data();
   const Eigen::Vector4d* planes = geometry.planes.data();
   const std::array<Vec, 3>* corners = geometry.corners.data();
   PendingTriangleTests tests;
   tests.four = &pointTriangleSquaredDistances4;
   double best = std::sqrt(best_squared);
-  const double scale = std::abs(p.x()) + std::abs(p.y()) + std::abs(p.z());
-  const __m256d px = _mm256_set1_pd(p.x()), py = _mm256_set1_pd(p.y()), pz = _mm256_set1_pd(p.z());
-  const __m256d shrink = _mm256_set1_pd(kShrink);
-  const __m256d slack_scale = _mm256_set1_pd(scale);
-  const __m256d slack_unit = _mm256_set1_pd(1e-13);
-  const __m256d sign_bit = _mm256_set1_pd(-0.0);
+  const PointBoundLanes lanes(p);
   for (std::uint32_t n = 0; n < list.length; n += 4) {
     // The entries of this block before the first whose bound reaches the best: sorted, none after it can
     // beat the best (a block's best may be a batch old, see PendingTriangleTests).
@@ -182,26 +221,11 @@ void scanPointList(const Vec& p, const PointListScan& list, const MeshModel& geo
     }
     if (count > 0) {
       for (int k = count; k < 4; ++k) ids[k] = ids[0];
-      __m256d cx = _mm256_loadu_pd(spheres[ids[0]].data()), cy = _mm256_loadu_pd(spheres[ids[1]].data());
-      __m256d cz = _mm256_loadu_pd(spheres[ids[2]].data()), r = _mm256_loadu_pd(spheres[ids[3]].data());
-      transpose(cx, cy, cz, r);
-      __m256d nx = _mm256_loadu_pd(planes[ids[0]].data()), ny = _mm256_loadu_pd(planes[ids[1]].data());
-      __m256d nz = _mm256_loadu_pd(planes[ids[2]].data()), w = _mm256_loadu_pd(planes[ids[3]].data());
-      transpose(nx, ny, nz, w);
-      // The triangle's bounding sphere: |p - center| >= radius + best puts it beyond the best.
-      const Lanes3 offset = sub({px, py, pz}, {cx, cy, cz});
-      const __m256d reach_squared = dot(offset, offset);
-      const __m256d rim = _mm256_add_pd(r, _mm256_set1_pd(best));
-      const __m256d near_sphere =
-          _mm256_cmp_pd(_mm256_mul_pd(reach_squared, shrink), _mm256_mul_pd(rim, rim), _CMP_NGE_UQ);
-      // Its plane (zero for a sliver, which then passes).
-      const __m256d along_normal = _mm256_sub_pd(dot({nx, ny, nz}, {px, py, pz}), w);
-      const __m256d slack =
-          _mm256_mul_pd(slack_unit, _mm256_add_pd(_mm256_add_pd(slack_scale, _mm256_andnot_pd(sign_bit, w)), r));
-      const __m256d height = _mm256_sub_pd(_mm256_andnot_pd(sign_bit, along_normal), slack);
-      const __m256d near_plane =
-          _mm256_cmp_pd(_mm256_mul_pd(height, shrink), _mm256_set1_pd(best), _CMP_NGE_UQ);
-      int pass = _mm256_movemask_pd(_mm256_and_pd(near_sphere, near_plane)) & ((1 << count) - 1);
+      Lanes3 center, normal;
+      __m256d radius, offset;
+      loadLanes(spheres[ids[0]], spheres[ids[1]], spheres[ids[2]], spheres[ids[3]], center, radius);
+      loadLanes(planes[ids[0]], planes[ids[1]], planes[ids[2]], planes[ids[3]], normal, offset);
+      int pass = lanes.passing(center, radius, normal, offset, best) & ((1 << count) - 1);
       while (pass != 0) {
         const int k = __builtin_ctz(unsigned(pass));
         pass &= pass - 1;
@@ -230,37 +254,31 @@ void fillBlock(PointListCache& cache, const MeshModel& geometry, std::uint32_t b
     const double bound = double(list.bounds[n]) * list.unit;
     block[k] = k < count ? bound * bound : std::numeric_limits<double>::infinity();
   }
-  __m256d cx = _mm256_loadu_pd(geometry.spheres[ids[0]].data()), cy = _mm256_loadu_pd(geometry.spheres[ids[1]].data());
-  __m256d cz = _mm256_loadu_pd(geometry.spheres[ids[2]].data()), r = _mm256_loadu_pd(geometry.spheres[ids[3]].data());
-  transpose(cx, cy, cz, r);
-  __m256d nx = _mm256_loadu_pd(geometry.planes[ids[0]].data()), ny = _mm256_loadu_pd(geometry.planes[ids[1]].data());
-  __m256d nz = _mm256_loadu_pd(geometry.planes[ids[2]].data()), w = _mm256_loadu_pd(geometry.planes[ids[3]].data());
-  transpose(nx, ny, nz, w);
-  _mm256_storeu_pd(block + 4, cx);
-  _mm256_storeu_pd(block + 8, cy);
-  _mm256_storeu_pd(block + 12, cz);
-  _mm256_storeu_pd(block + 16, r);
-  _mm256_storeu_pd(block + 20, nx);
-  _mm256_storeu_pd(block + 24, ny);
-  _mm256_storeu_pd(block + 28, nz);
-  _mm256_storeu_pd(block + 32, w);
+  const auto& spheres = geometry.spheres;
+  const auto& planes = geometry.planes;
+  Lanes3 center, normal;
+  __m256d radius, offset;
+  loadLanes(spheres[ids[0]], spheres[ids[1]], spheres[ids[2]], spheres[ids[3]], center, radius);
+  loadLanes(planes[ids[0]], planes[ids[1]], planes[ids[2]], planes[ids[3]], normal, offset);
+  _mm256_storeu_pd(block + 4, center.x);
+  _mm256_storeu_pd(block + 8, center.y);
+  _mm256_storeu_pd(block + 12, center.z);
+  _mm256_storeu_pd(block + 16, radius);
+  _mm256_storeu_pd(block + 20, normal.x);
+  _mm256_storeu_pd(block + 24, normal.y);
+  _mm256_storeu_pd(block + 28, normal.z);
+  _mm256_storeu_pd(block + 32, offset);
 }
 
 }  // namespace
 
 void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& geometry, double& best_squared,
                          int& best_triangle, Vec& closest) {
-  constexpr double kShrink = 1 - 1e-12;
   const std::array<Vec, 3>* corners = geometry.corners.data();
   PendingTriangleTests tests;
   tests.four = &pointTriangleSquaredDistances4;
   double best = std::sqrt(best_squared);
-  const double scale = std::abs(p.x()) + std::abs(p.y()) + std::abs(p.z());
-  const __m256d px = _mm256_set1_pd(p.x()), py = _mm256_set1_pd(p.y()), pz = _mm256_set1_pd(p.z());
-  const __m256d shrink = _mm256_set1_pd(kShrink);
-  const __m256d slack_scale = _mm256_set1_pd(scale);
-  const __m256d slack_unit = _mm256_set1_pd(1e-13);
-  const __m256d sign_bit = _mm256_set1_pd(-0.0);
+  const PointBoundLanes lanes(p);
   const std::uint32_t blocks = (list.source.length + 3) / 4;
   for (std::uint32_t b = 0; b < blocks; ++b) {
     if (b == list.filled) fillBlock(list, geometry, list.filled++);
@@ -270,22 +288,10 @@ void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& ge
     const int stop = _mm256_movemask_pd(_mm256_cmp_pd(_mm256_loadu_pd(block), _mm256_set1_pd(best_squared), _CMP_GE_OQ));
     const int count = stop ? __builtin_ctz(unsigned(stop)) : 4;
     if (count > 0) {
-      const __m256d cx = _mm256_loadu_pd(block + 4), cy = _mm256_loadu_pd(block + 8);
-      const __m256d cz = _mm256_loadu_pd(block + 12), r = _mm256_loadu_pd(block + 16);
-      const __m256d nx = _mm256_loadu_pd(block + 20), ny = _mm256_loadu_pd(block + 24);
-      const __m256d nz = _mm256_loadu_pd(block + 28), w = _mm256_loadu_pd(block + 32);
-      const Lanes3 offset = sub({px, py, pz}, {cx, cy, cz});
-      const __m256d reach_squared = dot(offset, offset);
-      const __m256d rim = _mm256_add_pd(r, _mm256_set1_pd(best));
-      const __m256d near_sphere =
-          _mm256_cmp_pd(_mm256_mul_pd(reach_squared, shrink), _mm256_mul_pd(rim, rim), _CMP_NGE_UQ);
-      const __m256d along_normal = _mm256_sub_pd(dot({nx, ny, nz}, {px, py, pz}), w);
-      const __m256d slack =
-          _mm256_mul_pd(slack_unit, _mm256_add_pd(_mm256_add_pd(slack_scale, _mm256_andnot_pd(sign_bit, w)), r));
-      const __m256d height = _mm256_sub_pd(_mm256_andnot_pd(sign_bit, along_normal), slack);
-      const __m256d near_plane =
-          _mm256_cmp_pd(_mm256_mul_pd(height, shrink), _mm256_set1_pd(best), _CMP_NGE_UQ);
-      int pass = _mm256_movemask_pd(_mm256_and_pd(near_sphere, near_plane)) & ((1 << count) - 1);
+      const Lanes3 center{_mm256_loadu_pd(block + 4), _mm256_loadu_pd(block + 8), _mm256_loadu_pd(block + 12)};
+      const Lanes3 normal{_mm256_loadu_pd(block + 20), _mm256_loadu_pd(block + 24), _mm256_loadu_pd(block + 28)};
+      int pass = lanes.passing(center, _mm256_loadu_pd(block + 16), normal, _mm256_loadu_pd(block + 32), best) &
+                 ((1 << count) - 1);
       while (pass != 0) {
         const int k = __builtin_ctz(unsigned(pass));
         pass &= pass - 1;
@@ -299,7 +305,6 @@ void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& ge
 
 void nearestTriangleBounded(const MeshModel& model, const Vec& p, double& best_squared, int& best_triangle,
                             Vec* closest) {
-  constexpr double kShrink = 1 - 1e-12;
   const auto& nodes = model.compact_nodes;
   if (nodes.empty()) return;
   // nearestTriangleCompactBounded's box distance with the three axes in lanes: the same sums in the same
@@ -326,12 +331,7 @@ void nearestTriangleBounded(const MeshModel& model, const Vec& p, double& best_s
   int top = 0;
   stack[top++] = {boxSquared(nodes[0]), 0};
   double best = std::sqrt(best_squared);
-  const double scale = std::abs(p.x()) + std::abs(p.y()) + std::abs(p.z());
-  const __m256d px = _mm256_set1_pd(p.x()), py = _mm256_set1_pd(p.y()), pz = _mm256_set1_pd(p.z());
-  const __m256d shrink = _mm256_set1_pd(kShrink);
-  const __m256d slack_scale = _mm256_set1_pd(scale);
-  const __m256d slack_unit = _mm256_set1_pd(1e-13);
-  const __m256d sign_bit = _mm256_set1_pd(-0.0);
+  const PointBoundLanes lanes(p);
   const Eigen::Vector4d* spheres = model.leaf_spheres.data();
   const Eigen::Vector4d* planes = model.leaf_planes.data();
   PendingTriangleTests tests;
@@ -344,25 +344,13 @@ void nearestTriangleBounded(const MeshModel& model, const Vec& p, double& best_s
       const int end = node.first + node.count;
       for (int i = node.first; i < end; i += 4) {
         // Lanes past the leaf repeat its last triangle and are masked off.
-        const int lanes = std::min(4, end - i);
-        const int j1 = i + std::min(1, lanes - 1), j2 = i + std::min(2, lanes - 1), j3 = i + std::min(3, lanes - 1);
-        __m256d cx = _mm256_loadu_pd(spheres[i].data()), cy = _mm256_loadu_pd(spheres[j1].data());
-        __m256d cz = _mm256_loadu_pd(spheres[j2].data()), r = _mm256_loadu_pd(spheres[j3].data());
-        transpose(cx, cy, cz, r);
-        __m256d nx = _mm256_loadu_pd(planes[i].data()), ny = _mm256_loadu_pd(planes[j1].data());
-        __m256d nz = _mm256_loadu_pd(planes[j2].data()), w = _mm256_loadu_pd(planes[j3].data());
-        transpose(nx, ny, nz, w);
-        const Lanes3 offset = sub({px, py, pz}, {cx, cy, cz});
-        const __m256d reach_squared = dot(offset, offset);
-        const __m256d rim = _mm256_add_pd(r, _mm256_set1_pd(best));
-        const __m256d near_sphere =
-            _mm256_cmp_pd(_mm256_mul_pd(reach_squared, shrink), _mm256_mul_pd(rim, rim), _CMP_NGE_UQ);
-        const __m256d along_normal = _mm256_sub_pd(dot({nx, ny, nz}, {px, py, pz}), w);
-        const __m256d slack =
-            _mm256_mul_pd(slack_unit, _mm256_add_pd(_mm256_add_pd(slack_scale, _mm256_andnot_pd(sign_bit, w)), r));
-        const __m256d height = _mm256_sub_pd(_mm256_andnot_pd(sign_bit, along_normal), slack);
-        const __m256d near_plane = _mm256_cmp_pd(_mm256_mul_pd(height, shrink), _mm256_set1_pd(best), _CMP_NGE_UQ);
-        int pass = _mm256_movemask_pd(_mm256_and_pd(near_sphere, near_plane)) & ((1 << lanes) - 1);
+        const int count = std::min(4, end - i);
+        const int j1 = i + std::min(1, count - 1), j2 = i + std::min(2, count - 1), j3 = i + std::min(3, count - 1);
+        Lanes3 center, normal;
+        __m256d radius, offset;
+        loadLanes(spheres[i], spheres[j1], spheres[j2], spheres[j3], center, radius);
+        loadLanes(planes[i], planes[j1], planes[j2], planes[j3], normal, offset);
+        int pass = lanes.passing(center, radius, normal, offset, best) & ((1 << count) - 1);
         while (pass != 0) {
           const int k = __builtin_ctz(unsigned(pass));
           pass &= pass - 1;

@@ -15,6 +15,17 @@
 namespace cfl {
 namespace {
 
+// The distance by brute force: every mesh triangle against the box's 12 triangles, and 0 when a mesh vertex
+// lies inside the box.
+double bruteForceBoxDistance(const CflModel& model, const TriangleMesh& mesh, const Eigen::Isometry3d& X_WM,
+                             const Eigen::Isometry3d& X_WB, const Eigen::Vector3d& half) {
+  const MeshModel box = makeMeshModel(test::makeBox(-half, half));
+  double expected = bruteForceDistance(model.geometry, X_WM, box, X_WB).distance;
+  for (const auto& v : mesh.vertices)
+    if (((X_WB.inverse() * (X_WM * v)).cwiseAbs() - half).maxCoeff() <= 0) expected = 0;
+  return expected;
+}
+
 TEST(BoxQuery, EqualsBruteForceApartTouchingAndAroundTheMesh) {
   std::mt19937_64 rng(1);
   std::normal_distribution<double> gauss;
@@ -33,11 +44,7 @@ TEST(BoxQuery, EqualsBruteForceApartTouchingAndAroundTheMesh) {
       Eigen::Vector3d half(0.02 + 0.01 * (i % 3), 0.03, 0.015);
       half *= size;
       if (i % 25 == 0) half = Eigen::Vector3d::Constant(size);  // The mesh wholly inside.
-      const Eigen::Vector3d min = -half, max = half;
-      const MeshModel box = makeMeshModel(test::makeBox(min, max));
-      double expected = bruteForceDistance(model.geometry, X_WM, box, X_WB).distance;
-      for (const auto& v : mesh.vertices)
-        if (((X_WB.inverse() * (X_WM * v)).cwiseAbs() - half).maxCoeff() <= 0) expected = 0;
+      const double expected = bruteForceBoxDistance(model, mesh, X_WM, X_WB, half);
       const BoxDistance got = computeBoxDistance(model, X_WM, X_WB, half);
       const std::string at = name + " pose " + std::to_string(i);
       ASSERT_GE(got.triangle, 0) << at;
@@ -51,28 +58,13 @@ TEST(BoxQuery, EqualsBruteForceApartTouchingAndAroundTheMesh) {
   }
 }
 
-// The distance by brute force: every mesh triangle against the box's 12 triangles, and 0 when a mesh vertex
-// lies inside the box.
-double bruteForceBoxDistance(const CflModel& model, const TriangleMesh& mesh, const Eigen::Isometry3d& X_WM,
-                             const Eigen::Isometry3d& X_WB, const Eigen::Vector3d& half) {
-  const MeshModel box = makeMeshModel(test::makeBox(-half, half));
-  double expected = bruteForceDistance(model.geometry, X_WM, box, X_WB).distance;
-  for (const auto& v : mesh.vertices)
-    if (((X_WB.inverse() * (X_WM * v)).cwiseAbs() - half).maxCoeff() <= 0) expected = 0;
-  return expected;
-}
-
 // Where only some of a triangle's features can be closest (the pruning by normal cones and separating gaps):
 // boxes aligned with an axis-aligned mesh, so that faces and edges are parallel and touch exactly, boxes
 // turned by small angles, far boxes, and a mesh with zero-area and duplicated triangles.
 TEST(BoxQuery, EqualsBruteForceOnParallelFacesDegenerateTrianglesAndFarBoxes) {
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> uniform(-1, 1);
-  for (const auto& [name, mesh] : std::vector<std::pair<std::string, TriangleMesh>>{
-           {"blocks", test::merge(test::makeBox(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(0, 0, 0)),
-                                  test::makeBox(Eigen::Vector3d(0.5, 0.5, 0.5), Eigen::Vector3d(1, 2, 1)))},
-           {"messy", test::makeMessyMesh()},
-           {"hemisphere", test::makeHemisphere()}}) {
+  for (const auto& [name, mesh] : test::makeFeaturePruningMeshes()) {
     const CflModel model = buildCflModel(mesh);
     const double size = model.geometry.bounds.diagonal();
     int apart = 0, touching = 0;

@@ -129,11 +129,7 @@ TEST(SegmentQuery, UnsignedEqualsBruteForceWithPointsOnTheSegmentAndTheTriangle)
 TEST(SegmentQuery, UnsignedEqualsBruteForceOnParallelSegmentsAndDegenerateTriangles) {
   std::mt19937_64 rng(9);
   std::uniform_real_distribution<double> uniform(-1, 1);
-  for (const auto& [name, mesh] : std::vector<std::pair<std::string, TriangleMesh>>{
-           {"blocks", test::merge(test::makeBox(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(0, 0, 0)),
-                                  test::makeBox(Eigen::Vector3d(0.5, 0.5, 0.5), Eigen::Vector3d(1, 2, 1)))},
-           {"messy", test::makeMessyMesh()},
-           {"hemisphere", test::makeHemisphere()}}) {
+  for (const auto& [name, mesh] : test::makeFeaturePruningMeshes()) {
     const CflModel model = buildCflModel(mesh);
     const double size = model.geometry.bounds.diagonal();
     const Eigen::Isometry3d X = Eigen::Isometry3d::Identity();

@@ -210,6 +210,13 @@ TriangleMesh merge(const TriangleMesh& a, const TriangleMesh& b) {
   return mesh;
 }
 
+std::vector<std::pair<std::string, TriangleMesh>> makeFeaturePruningMeshes() {
+  return {{"blocks", merge(makeBox(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(0, 0, 0)),
+                           makeBox(Eigen::Vector3d(0.5, 0.5, 0.5), Eigen::Vector3d(1, 2, 1)))},
+          {"messy", makeMessyMesh()},
+          {"hemisphere", makeHemisphere()}};
+}
+
 TriangleMesh makeSelfIntersectingMesh(int major_segments, int minor_segments) {
   const TriangleMesh torus = makeTorus(1.0, 0.3, major_segments, minor_segments);
   // A second torus, standing up in the xz plane and shifted so that its tube cuts through the first's.

@@ -14,6 +14,8 @@
 #include <functional>
 #include <random>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace cfl::test {
 
@@ -63,6 +65,12 @@ TriangleMesh makeBox(const Eigen::Vector3d& min, const Eigen::Vector3d& max);
 
 /// Concatenates two soups (no vertex merging).
 TriangleMesh merge(const TriangleMesh& a, const TriangleMesh& b);
+
+/// Meshes whose features line up with a query shape's or degenerate, for the tests of feature pruning
+/// (which faces, edges and corners of a triangle and a shape can be closest), by name: "blocks", two
+/// axis-aligned boxes whose faces lie on a quarter-unit grid; "messy", makeMessyMesh; "hemisphere", an open
+/// makeHemisphere.
+std::vector<std::pair<std::string, TriangleMesh>> makeFeaturePruningMeshes();
 
 /// Reads the `v` and `f` lines of a Wavefront OBJ file (polygons fan-triangulated, `a/b/c` and negative
 /// indices understood). Independent of the library's loaders. Throws std::runtime_error on failure.

@@ -1144,6 +1144,40 @@ TEST(ComputeDistance, SliversFannedAroundARefinedPatchMatchBruteForce) {
   EXPECT_EQ(failures.count(), 0);
 }
 
+// B's Bvh leaves that reach past A's grid go on whole as node pairs with A's Bvh (Search::expand), their
+// triangles inside the grid included: flat meshes, slivers among them, at the poses where B straddles the
+// grid's boundary must match brute force.
+TEST(ComputeDistance, FlatMeshesStraddlingTheGridBoundaryMatchBruteForce) {
+  const auto slab = makeShape("refined_slab", makeRefinedSlab(), 0);
+  const Shape* flat[] = {slab.get(), &shape("thin_slab"), &shape("ground_torus"), &shape("wavy_sheet")};
+  test::Rng rng(3141);
+  Failures failures;
+  int straddling = 0;
+  for (const Shape* a : flat) {
+    for (const Shape* b : flat) {
+      for (double fraction : {0.4, 0.7, 1.0, 1.5}) {
+        for (int n = 0; n < 3; ++n) {
+          const Pose pose = makePose(*a, *b, fraction, rng);
+          const Aabb grid = a->cfl.regions.bounds();
+          const Eigen::Isometry3d X_AB = pose.X_WA.inverse() * pose.X_WB;
+          int inside = 0;
+          for (const auto& v : b->mesh.vertices) {
+            const Eigen::Vector3d p = X_AB * v;
+            inside += (grid.min.array() <= p.array()).all() && (p.array() <= grid.max.array()).all();
+          }
+          if (inside == 0 || inside == int(b->mesh.vertices.size())) continue;
+          ++straddling;
+          const DistanceResult truth = bruteForceDistance(a->model, pose.X_WA, b->model, pose.X_WB);
+          checkResult(computeDistance(a->cfl, pose.X_WA, b->model, pose.X_WB), truth, *a, *b, pose, "straddling",
+                      failures);
+        }
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+  EXPECT_GE(straddling, 40) << "too few poses with B across the grid's boundary";
+}
+
 TEST(DistanceCache, SlowMotionMatchesBruteForceAndIsMostlyAnsweredByTheCertificate) {
   test::Rng rng(101);
   Failures failures;

@@ -203,6 +203,7 @@ struct ListScratch {
   std::vector<std::uint8_t> early_state;
   std::vector<double> early_quick_bounds;
   std::vector<double> early_center_distances;
+  std::vector<std::uint8_t> early_masks;  // per candidate of such a cell: its edge region mask (culling)
   // Per entry of the cell's list: its full bound when entry_exact, else its quick bound (finishCellList).
   std::vector<double> entry_bounds;
   std::vector<std::uint8_t> entry_exact;
@@ -431,17 +432,30 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   scratch.early_state.clear();
   scratch.early_quick_bounds.clear();
   scratch.early_center_distances.clear();
+  // The edges of triangle t with a neighbour whose region holds the cell: topology culling may drop t
+  // when this is not 0.
+  auto edgeRegionMask = [&](int t) {
+    const TriangleTopology& entry = topology.triangles[t];
+    std::uint8_t mask = 0;
+    for (int e = 0; e < 3; ++e) {
+      if (entry.neighbours[e + 1] > entry.neighbours[e] &&
+          cellInEdgeRegion(geometry.corners[t], entry.outward[e], e, center, half, margin)) {
+        mask |= std::uint8_t(1 << e);
+      }
+    }
+    return mask;
+  };
+  // The masks computed while counting, kept for culling below.
+  scratch.early_masks.clear();
   auto certainlyListed = [&](int t) {
     if (context.culling) {
-      const TriangleTopology& entry = topology.triangles[t];
-      for (int e = 0; e < 3; ++e) {
-        if (entry.neighbours[e + 1] > entry.neighbours[e] &&
-            cellInEdgeRegion(geometry.corners[t], entry.outward[e], e, center, half, margin)) {
-          scratch.early_state.push_back(kNotTested);
-          scratch.early_quick_bounds.push_back(0);
-          scratch.early_center_distances.push_back(0);
-          return false;
-        }
+      const std::uint8_t mask = edgeRegionMask(t);
+      scratch.early_masks.push_back(mask);
+      if (mask) {
+        scratch.early_state.push_back(kNotTested);
+        scratch.early_quick_bounds.push_back(0);
+        scratch.early_center_distances.push_back(0);
+        return false;
       }
     }
     double d_min, d_center;
@@ -553,14 +567,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     left = missing + 3;                     // shown to leave
     for (std::uint32_t n = 0; n < candidate_count; ++n) {
       const int t = candidates[n];
-      const TriangleTopology& entry = topology.triangles[t];
-      std::uint8_t mask = 0;
-      for (int e = 0; e < 3; ++e) {
-        if (entry.neighbours[e + 1] > entry.neighbours[e] &&
-            cellInEdgeRegion(geometry.corners[t], entry.outward[e], e, center, half, margin)) {
-          mask |= std::uint8_t(1 << e);
-        }
-      }
+      const std::uint8_t mask = count_early ? scratch.early_masks[n] : edgeRegionMask(t);
       scratch.marks[t] = mask ? undecided : stays;
       scratch.triangle_masks[t] = mask;
       any_droppable = any_droppable || mask;

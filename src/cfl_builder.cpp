@@ -119,23 +119,29 @@ struct TriangleTopology {
   std::int32_t neighbours[4] = {0, 0, 0, 0};
 };
 
+// Indexed by the triangles' positions in the Bvh's leaf order (Bvh::triangle_ids), as are the builder's
+// candidates: a cell's candidates come from a few Bvh leaves, each a run of consecutive positions, so their
+// topology, corners and spheres (MeshModel::leaf_corners, leaf_spheres) lie side by side in memory.
 struct Topology {
   std::vector<TriangleTopology> triangles;
-  std::vector<int> edge_neighbours;
+  std::vector<int> edge_neighbours;  // leaf positions too
 };
 
 Topology makeTopology(const MeshModel& geometry) {
   const auto& triangles = geometry.mesh.triangles;
+  const auto& order = geometry.bvh.triangle_ids;
   std::unordered_map<std::uint64_t, std::vector<int>> by_edge;
   auto key = [](int u, int v) { return (std::uint64_t(std::min(u, v)) << 32) | std::uint32_t(std::max(u, v)); };
-  for (int t = 0; t < int(triangles.size()); ++t) {
-    for (int e = 0; e < 3; ++e) by_edge[key(triangles[t][e], triangles[t][(e + 1) % 3])].push_back(t);
+  for (int n = 0; n < int(order.size()); ++n) {
+    const auto& triangle = triangles[order[n]];
+    for (int e = 0; e < 3; ++e) by_edge[key(triangle[e], triangle[(e + 1) % 3])].push_back(n);
   }
   Topology topology;
-  topology.triangles.resize(triangles.size());
-  for (int t = 0; t < int(triangles.size()); ++t) {
-    const auto& c = geometry.corners[t];
-    TriangleTopology& entry = topology.triangles[t];
+  topology.triangles.resize(order.size());
+  for (int n = 0; n < int(order.size()); ++n) {
+    const int t = order[n];
+    const auto& c = geometry.leaf_corners[n];
+    TriangleTopology& entry = topology.triangles[n];
     const Eigen::Vector3d normal = (c[1] - c[0]).cross(c[2] - c[0]);
     const double scale = std::max({(c[1] - c[0]).squaredNorm(), (c[2] - c[1]).squaredNorm(), (c[0] - c[2]).squaredNorm()});
     const bool degenerate = !(normal.norm() > 1e-8 * scale);
@@ -147,7 +153,7 @@ Topology makeTopology(const MeshModel& geometry) {
       if (outward.dot(c[(e + 2) % 3] - c[e]) > 0) outward = -outward;
       entry.outward[e] = outward;
       for (int other : by_edge[key(u, v)]) {
-        if (other != t) topology.edge_neighbours.push_back(other);
+        if (other != n) topology.edge_neighbours.push_back(other);
       }
     }
     entry.neighbours[3] = int(topology.edge_neighbours.size());
@@ -185,17 +191,17 @@ std::uint8_t quantizeEntryBound(double d_min, double unit) {
 
 // Per-worker scratch of the list pass, reused from cell to cell.
 struct ListScratch {
-  // Topology culling: marks[t] in [last_mark - 3, last_mark] when triangle t is a candidate of the current
-  // voxel, saying whether a test excluded it, it stays, may leave or has left; any other value means not a
+  // Topology culling: marks[i] in [last_mark - 3, last_mark] when the triangle at leaf position i (see
+  // Topology) is a candidate of the current voxel, saying whether a test excluded it, it stays, may leave or has left; any other value means not a
   // candidate. Sized on first use, so that idle workers cost nothing; with triangle_masks, 5 bytes per
   // triangle per worker.
   std::vector<std::uint32_t> marks;
   std::uint32_t last_mark = 0;
-  // Per triangle: the edges whose region holds the voxel, read only for undecided candidates.
+  // Per leaf position: the edges whose region holds the voxel, read only for undecided candidates.
   std::vector<std::uint8_t> triangle_masks;
   std::vector<std::int32_t> pending;     // triangles that left, whose neighbours may follow
   std::vector<std::uint64_t> sort_keys;  // (bound, id)
-  std::vector<std::int32_t> candidates;  // of the current voxel, from the Bvh walk
+  std::vector<std::int32_t> candidates;  // of the current voxel, from the Bvh walk: leaf positions
   std::vector<double> quick_bounds;      // per list entry: cubeTriangleQuickBound, before the full bound
   std::vector<double> center_distances;  // per list entry: its distance from the cell's center
   // Per candidate of a cell that cannot split: the exclusion tests' verdict when the gather already ran them
@@ -404,9 +410,11 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
 
   // Triangles that may belong: a Bvh walk that skips nodes whose box is farther than U from the voxel's
   // cube (then dmin > U for all below), or that the cone test excludes as a whole.
-  // The exclusion tests of one candidate: whether they exclude it, else its quick bound and center distance.
-  auto exclusionTests = [&](int t, double& d_min, double& d_center) {
-    const auto& c = geometry.corners[t];
+  // Candidates are leaf positions (see Topology). The exclusion tests of candidate i: whether they exclude
+  // it, else its quick bound and center distance.
+  const auto& leaf_triangle = geometry.bvh.triangle_ids;
+  auto exclusionTests = [&](int i, double& d_min, double& d_center) {
+    const auto& c = geometry.leaf_corners[i];
     Eigen::Vector3d closest;
     d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
     bool excluded = d_center - half_diagonal > upper_bound;
@@ -415,8 +423,8 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
       d_min = detail::cubeTriangleQuickBound(center, half, c[0], c[1], c[2], closest);
       excluded = d_min > upper_bound;
     }
-    if (!excluded && cone_usable && t != center_triangle) {
-      const Eigen::Vector4d& sphere_i = geometry.spheres[t];
+    if (!excluded && cone_usable && leaf_triangle[i] != center_triangle) {
+      const Eigen::Vector4d& sphere_i = geometry.leaf_spheres[i];
       excluded = coneExcludes(d_center, sphere_i.head<3>(), sphere_i[3]);
     }
     return excluded;
@@ -432,14 +440,14 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   scratch.early_state.clear();
   scratch.early_quick_bounds.clear();
   scratch.early_center_distances.clear();
-  // The edges of triangle t with a neighbour whose region holds the cell: topology culling may drop t
+  // The edges of candidate i with a neighbour whose region holds the cell: topology culling may drop it
   // when this is not 0.
-  auto edgeRegionMask = [&](int t) {
-    const TriangleTopology& entry = topology.triangles[t];
+  auto edgeRegionMask = [&](int i) {
+    const TriangleTopology& entry = topology.triangles[i];
     std::uint8_t mask = 0;
     for (int e = 0; e < 3; ++e) {
       if (entry.neighbours[e + 1] > entry.neighbours[e] &&
-          cellInEdgeRegion(geometry.corners[t], entry.outward[e], e, center, half, margin)) {
+          cellInEdgeRegion(geometry.leaf_corners[i], entry.outward[e], e, center, half, margin)) {
         mask |= std::uint8_t(1 << e);
       }
     }
@@ -447,9 +455,9 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   };
   // The masks computed while counting, kept for culling below.
   scratch.early_masks.clear();
-  auto certainlyListed = [&](int t) {
+  auto certainlyListed = [&](int i) {
     if (context.culling) {
-      const std::uint8_t mask = edgeRegionMask(t);
+      const std::uint8_t mask = edgeRegionMask(i);
       scratch.early_masks.push_back(mask);
       if (mask) {
         scratch.early_state.push_back(kNotTested);
@@ -459,7 +467,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
       }
     }
     double d_min, d_center;
-    const bool excluded = exclusionTests(t, d_min, d_center);
+    const bool excluded = exclusionTests(i, d_min, d_center);
     scratch.early_state.push_back(excluded ? kExcluded : kKept);
     scratch.early_quick_bounds.push_back(d_min);
     scratch.early_center_distances.push_back(d_center);
@@ -479,8 +487,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     if ((outside.array() - half).max(0.0).matrix().squaredNorm() > upper_bound_squared) continue;
     if (cone_usable && coneExcludes(outside.norm(), node.center, node.radius)) continue;
     if (node.isLeaf()) {
-      candidates.insert(candidates.end(), geometry.bvh.triangle_ids.begin() + node.first,
-                        geometry.bvh.triangle_ids.begin() + node.first + node.count);
+      for (int i = node.first; i < node.first + node.count; ++i) candidates.push_back(i);
       if (count_early) {
         for (std::size_t n = candidates.size() - node.count; n < candidates.size(); ++n) {
           if (certainlyListed(candidates[n]) && ++certain_count > longest_stored) {
@@ -516,11 +523,11 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   // drops, the second round reaches the same least fixed point as a single round after the tests.
   const bool culling = context.culling && candidate_count > 1;
   std::uint32_t missing = 0, stays = 0, undecided = 0, left = 0;
-  // Whether undecided triangle t may leave now: some edge whose region holds the voxel has a neighbour that
+  // Whether undecided candidate i may leave now: some edge whose region holds the voxel has a neighbour that
   // is not undecided.
-  auto mayLeave = [&](int t) {
-    const TriangleTopology& entry = topology.triangles[t];
-    const std::uint8_t mask = scratch.triangle_masks[t];
+  auto mayLeave = [&](int i) {
+    const TriangleTopology& entry = topology.triangles[i];
+    const std::uint8_t mask = scratch.triangle_masks[i];
     for (int e = 0; e < 3; ++e) {
       if (!(mask >> e & 1)) continue;
       for (int m = entry.neighbours[e]; m < entry.neighbours[e + 1]; ++m) {
@@ -535,16 +542,16 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     std::vector<std::int32_t>& pending = scratch.pending;
     pending.clear();
     for (std::uint32_t n = 0; n < size; ++n) {
-      const int t = candidates[n];
-      if (scratch.marks[t] == undecided && mayLeave(t)) {
-        scratch.marks[t] = left;
-        pending.push_back(t);
+      const int i = candidates[n];
+      if (scratch.marks[i] == undecided && mayLeave(i)) {
+        scratch.marks[i] = left;
+        pending.push_back(i);
       }
     }
     while (!pending.empty()) {
-      const int t = pending.back();
+      const int i = pending.back();
       pending.pop_back();
-      const TriangleTopology& entry = topology.triangles[t];
+      const TriangleTopology& entry = topology.triangles[i];
       for (int m = entry.neighbours[0]; m < entry.neighbours[3]; ++m) {
         const int other = topology.edge_neighbours[m];
         if (scratch.marks[other] == undecided && mayLeave(other)) {
@@ -566,10 +573,10 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     undecided = missing + 2;                // droppable, not yet shown to leave
     left = missing + 3;                     // shown to leave
     for (std::uint32_t n = 0; n < candidate_count; ++n) {
-      const int t = candidates[n];
-      const std::uint8_t mask = count_early ? scratch.early_masks[n] : edgeRegionMask(t);
-      scratch.marks[t] = mask ? undecided : stays;
-      scratch.triangle_masks[t] = mask;
+      const int i = candidates[n];
+      const std::uint8_t mask = count_early ? scratch.early_masks[n] : edgeRegionMask(i);
+      scratch.marks[i] = mask ? undecided : stays;
+      scratch.triangle_masks[i] = mask;
       any_droppable = any_droppable || mask;
     }
     if (any_droppable) propagate(candidate_count);
@@ -584,8 +591,8 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   scratch.center_distances.clear();
   bool any_excluded = false;
   for (std::uint32_t n = 0; n < candidate_count; ++n) {
-    const int t = candidates[n];
-    if (culling && scratch.marks[t] == left) continue;
+    const int i = candidates[n];
+    if (culling && scratch.marks[i] == left) continue;
     double d_min, d_center;
     bool excluded;
     if (count_early && scratch.early_state[n] != kNotTested) {
@@ -593,14 +600,14 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
       d_min = scratch.early_quick_bounds[n];
       d_center = scratch.early_center_distances[n];
     } else {
-      excluded = exclusionTests(t, d_min, d_center);
+      excluded = exclusionTests(i, d_min, d_center);
     }
     if (excluded) {
-      if (culling) scratch.marks[t] = missing;
+      if (culling) scratch.marks[i] = missing;
       any_excluded = true;
       continue;
     }
-    candidates[count] = t;  // compacted in place: n >= count
+    candidates[count] = i;  // compacted in place: n >= count
     scratch.quick_bounds.push_back(d_min);
     scratch.center_distances.push_back(d_center);
     ++count;
@@ -615,16 +622,16 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   scratch.entry_bounds.clear();
   scratch.entry_exact.clear();
   for (std::uint32_t n = 0; n < count; ++n) {
-    const int t = candidates[n];
-    if (culling && scratch.marks[t] == left) continue;
+    const int i = candidates[n];
+    if (culling && scratch.marks[i] == left) continue;
     double d_min = scratch.quick_bounds[n];
     const bool exact = !(scratch.center_distances[n] < certain);
     if (exact) {
-      const auto& c = geometry.corners[t];
+      const auto& c = geometry.leaf_corners[i];
       d_min = detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], d_min);
       if (d_min > upper_bound) continue;
     }
-    out.ids.push_back(t);
+    out.ids.push_back(leaf_triangle[i]);
     scratch.entry_bounds.push_back(d_min);
     scratch.entry_exact.push_back(exact);
   }

@@ -8,6 +8,7 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
+#include <tbb/task_group.h>
 #include <tbb/task_arena.h>
 
 #include <Eigen/Geometry>
@@ -860,7 +861,6 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   CflModel model;
   model.geometry = makeMeshModel(std::move(mesh));
   const MeshModel& geometry = model.geometry;
-  model.sign = analyzeMeshSign(geometry);
   model.padding = options.padding;
   model.topology_culling = options.topology_culling;
   RegionTree& tree = model.regions;
@@ -884,6 +884,11 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
     throw Error(message.str());
   }
   const int threads = workerCount(options.threads);
+  tbb::task_arena arena(threads);
+  // The sign analysis is serial and nothing else reads it: one worker runs it while the others go on with
+  // the topology, the corners and the cells.
+  tbb::task_group sign_task;
+  arena.execute([&] { sign_task.run([&] { model.sign = analyzeMeshSign(geometry); }); });
   const Topology topology = options.topology_culling ? makeTopology(geometry) : Topology();
   const BuildContext context{geometry, topology, options.topology_culling};
   std::vector<double> triangle_edge(geometry.corners.size());
@@ -900,7 +905,6 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   std::vector<double> root_corner_distance(corner_count);
   std::vector<int> root_corner_triangle(corner_count, -1);
   auto cornerIndex = [&](int i, int j, int k) { return i + std::int64_t(corner_dims[0]) * (j + std::int64_t(corner_dims[1]) * k); };
-  tbb::task_arena arena(threads);
   std::atomic<std::int64_t> done{0};
   auto report = [&](double begin, double end, std::int64_t total) {
     progress(begin + (end - begin) * double(done.load()) / double(std::max<std::int64_t>(total, 1)));
@@ -955,6 +959,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   });
   root_corner_distance = {};
   root_corner_triangle = {};
+  arena.execute([&] { sign_task.wait(); });
 
   // 3. Flatten: root cells first, then each root cell's descendants in turn; identical lists (same ids,
   //    bounds and depth, so the bounds' unit agrees) stored once.

@@ -131,12 +131,16 @@ struct Topology {
 Topology makeTopology(const MeshModel& geometry) {
   const auto& triangles = geometry.mesh.triangles;
   const auto& order = geometry.bvh.triangle_ids;
-  std::unordered_map<std::uint64_t, std::vector<int>> by_edge;
+  // Every edge as (its vertex pair, its triangle's position), sorted: the triangles of one edge side by side,
+  // found by a binary search (a hash map of vectors cost several times more on large meshes).
   auto key = [](int u, int v) { return (std::uint64_t(std::min(u, v)) << 32) | std::uint32_t(std::max(u, v)); };
+  std::vector<std::pair<std::uint64_t, int>> edges;
+  edges.reserve(3 * order.size());
   for (int n = 0; n < int(order.size()); ++n) {
     const auto& triangle = triangles[order[n]];
-    for (int e = 0; e < 3; ++e) by_edge[key(triangle[e], triangle[(e + 1) % 3])].push_back(n);
+    for (int e = 0; e < 3; ++e) edges.emplace_back(key(triangle[e], triangle[(e + 1) % 3]), n);
   }
+  std::sort(edges.begin(), edges.end());
   Topology topology;
   topology.triangles.resize(order.size());
   for (int n = 0; n < int(order.size()); ++n) {
@@ -153,8 +157,10 @@ Topology makeTopology(const MeshModel& geometry) {
       Eigen::Vector3d outward = (c[(e + 1) % 3] - c[e]).cross(normal);
       if (outward.dot(c[(e + 2) % 3] - c[e]) > 0) outward = -outward;
       entry.outward[e] = outward;
-      for (int other : by_edge[key(u, v)]) {
-        if (other != n) topology.edge_neighbours.push_back(other);
+      const std::uint64_t edge = key(u, v);
+      auto it = std::lower_bound(edges.begin(), edges.end(), std::make_pair(edge, std::numeric_limits<int>::min()));
+      for (; it != edges.end() && it->first == edge; ++it) {
+        if (it->second != n) topology.edge_neighbours.push_back(it->second);
       }
     }
     entry.neighbours[3] = int(topology.edge_neighbours.size());

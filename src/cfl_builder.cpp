@@ -738,6 +738,20 @@ float lowerFloat(double x) {
   return f;
 }
 
+// Waits for `group` inside `arena` when leaving a scope early: a wait from outside the arena could not run
+// the group's task itself, which with a single thread nothing else would. Whatever the task threw is
+// dropped there, as an exception is already on its way; the normal path waits (and rethrows) explicitly.
+struct TaskGroupWaiter {
+  tbb::task_arena& arena;
+  tbb::task_group& group;
+  ~TaskGroupWaiter() {
+    try {
+      arena.execute([&] { group.wait(); });
+    } catch (...) {
+    }
+  }
+};
+
 // Shared across the root cells' builds: the bytes committed so far, against the memory limit.
 struct Budget {
   std::atomic<std::int64_t> bytes{0};
@@ -895,6 +909,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   // the topology, the corners and the cells.
   tbb::task_group sign_task;
   arena.execute([&] { sign_task.run([&] { model.sign = analyzeMeshSign(geometry); }); });
+  const TaskGroupWaiter sign_waiter{arena, sign_task};
   const Topology topology = options.topology_culling ? makeTopology(geometry) : Topology();
   const BuildContext context{geometry, topology, options.topology_culling};
   std::vector<double> triangle_edge(geometry.corners.size());

@@ -8,6 +8,7 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
+#include <tbb/task_group.h>
 #include <tbb/task_arena.h>
 
 #include <Eigen/Geometry>
@@ -119,23 +120,33 @@ struct TriangleTopology {
   std::int32_t neighbours[4] = {0, 0, 0, 0};
 };
 
+// Indexed by the triangles' positions in the Bvh's leaf order (Bvh::triangle_ids), as are the builder's
+// candidates: a cell's candidates come from a few Bvh leaves, each a run of consecutive positions, so their
+// topology, corners and spheres (MeshModel::leaf_corners, leaf_spheres) lie side by side in memory.
 struct Topology {
   std::vector<TriangleTopology> triangles;
-  std::vector<int> edge_neighbours;
+  std::vector<int> edge_neighbours;  // leaf positions too
 };
 
 Topology makeTopology(const MeshModel& geometry) {
   const auto& triangles = geometry.mesh.triangles;
-  std::unordered_map<std::uint64_t, std::vector<int>> by_edge;
+  const auto& order = geometry.bvh.triangle_ids;
+  // Every edge as (its vertex pair, its triangle's position), sorted: the triangles of one edge side by side,
+  // found by a binary search (a hash map of vectors cost several times more on large meshes).
   auto key = [](int u, int v) { return (std::uint64_t(std::min(u, v)) << 32) | std::uint32_t(std::max(u, v)); };
-  for (int t = 0; t < int(triangles.size()); ++t) {
-    for (int e = 0; e < 3; ++e) by_edge[key(triangles[t][e], triangles[t][(e + 1) % 3])].push_back(t);
+  std::vector<std::pair<std::uint64_t, int>> edges;
+  edges.reserve(3 * order.size());
+  for (int n = 0; n < int(order.size()); ++n) {
+    const auto& triangle = triangles[order[n]];
+    for (int e = 0; e < 3; ++e) edges.emplace_back(key(triangle[e], triangle[(e + 1) % 3]), n);
   }
+  std::sort(edges.begin(), edges.end());
   Topology topology;
-  topology.triangles.resize(triangles.size());
-  for (int t = 0; t < int(triangles.size()); ++t) {
-    const auto& c = geometry.corners[t];
-    TriangleTopology& entry = topology.triangles[t];
+  topology.triangles.resize(order.size());
+  for (int n = 0; n < int(order.size()); ++n) {
+    const int t = order[n];
+    const auto& c = geometry.leaf_corners[n];
+    TriangleTopology& entry = topology.triangles[n];
     const Eigen::Vector3d normal = (c[1] - c[0]).cross(c[2] - c[0]);
     const double scale = std::max({(c[1] - c[0]).squaredNorm(), (c[2] - c[1]).squaredNorm(), (c[0] - c[2]).squaredNorm()});
     const bool degenerate = !(normal.norm() > 1e-8 * scale);
@@ -146,8 +157,10 @@ Topology makeTopology(const MeshModel& geometry) {
       Eigen::Vector3d outward = (c[(e + 1) % 3] - c[e]).cross(normal);
       if (outward.dot(c[(e + 2) % 3] - c[e]) > 0) outward = -outward;
       entry.outward[e] = outward;
-      for (int other : by_edge[key(u, v)]) {
-        if (other != t) topology.edge_neighbours.push_back(other);
+      const std::uint64_t edge = key(u, v);
+      auto it = std::lower_bound(edges.begin(), edges.end(), std::make_pair(edge, std::numeric_limits<int>::min()));
+      for (; it != edges.end() && it->first == edge; ++it) {
+        if (it->second != n) topology.edge_neighbours.push_back(it->second);
       }
     }
     entry.neighbours[3] = int(topology.edge_neighbours.size());
@@ -185,17 +198,17 @@ std::uint8_t quantizeEntryBound(double d_min, double unit) {
 
 // Per-worker scratch of the list pass, reused from cell to cell.
 struct ListScratch {
-  // Topology culling: marks[t] in [last_mark - 3, last_mark] when triangle t is a candidate of the current
-  // voxel, saying whether a test excluded it, it stays, may leave or has left; any other value means not a
+  // Topology culling: marks[i] in [last_mark - 3, last_mark] when the triangle at leaf position i (see
+  // Topology) is a candidate of the current voxel, saying whether a test excluded it, it stays, may leave or has left; any other value means not a
   // candidate. Sized on first use, so that idle workers cost nothing; with triangle_masks, 5 bytes per
   // triangle per worker.
   std::vector<std::uint32_t> marks;
   std::uint32_t last_mark = 0;
-  // Per triangle: the edges whose region holds the voxel, read only for undecided candidates.
+  // Per leaf position: the edges whose region holds the voxel, read only for undecided candidates.
   std::vector<std::uint8_t> triangle_masks;
   std::vector<std::int32_t> pending;     // triangles that left, whose neighbours may follow
   std::vector<std::uint64_t> sort_keys;  // (bound, id)
-  std::vector<std::int32_t> candidates;  // of the current voxel, from the Bvh walk
+  std::vector<std::int32_t> candidates;  // of the current voxel, from the Bvh walk: leaf positions
   std::vector<double> quick_bounds;      // per list entry: cubeTriangleQuickBound, before the full bound
   std::vector<double> center_distances;  // per list entry: its distance from the cell's center
   // Per candidate of a cell that cannot split: the exclusion tests' verdict when the gather already ran them
@@ -203,6 +216,7 @@ struct ListScratch {
   std::vector<std::uint8_t> early_state;
   std::vector<double> early_quick_bounds;
   std::vector<double> early_center_distances;
+  std::vector<std::uint8_t> early_masks;  // per candidate of such a cell: its edge region mask (culling)
   // Per entry of the cell's list: its full bound when entry_exact, else its quick bound (finishCellList).
   std::vector<double> entry_bounds;
   std::vector<std::uint8_t> entry_exact;
@@ -403,9 +417,11 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
 
   // Triangles that may belong: a Bvh walk that skips nodes whose box is farther than U from the voxel's
   // cube (then dmin > U for all below), or that the cone test excludes as a whole.
-  // The exclusion tests of one candidate: whether they exclude it, else its quick bound and center distance.
-  auto exclusionTests = [&](int t, double& d_min, double& d_center) {
-    const auto& c = geometry.corners[t];
+  // Candidates are leaf positions (see Topology). The exclusion tests of candidate i: whether they exclude
+  // it, else its quick bound and center distance.
+  const auto& leaf_triangle = geometry.bvh.triangle_ids;
+  auto exclusionTests = [&](int i, double& d_min, double& d_center) {
+    const auto& c = geometry.leaf_corners[i];
     Eigen::Vector3d closest;
     d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
     bool excluded = d_center - half_diagonal > upper_bound;
@@ -414,8 +430,8 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
       d_min = detail::cubeTriangleQuickBound(center, half, c[0], c[1], c[2], closest);
       excluded = d_min > upper_bound;
     }
-    if (!excluded && cone_usable && t != center_triangle) {
-      const Eigen::Vector4d& sphere_i = geometry.spheres[t];
+    if (!excluded && cone_usable && leaf_triangle[i] != center_triangle) {
+      const Eigen::Vector4d& sphere_i = geometry.leaf_spheres[i];
       excluded = coneExcludes(d_center, sphere_i.head<3>(), sphere_i[3]);
     }
     return excluded;
@@ -431,21 +447,34 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   scratch.early_state.clear();
   scratch.early_quick_bounds.clear();
   scratch.early_center_distances.clear();
-  auto certainlyListed = [&](int t) {
+  // The edges of candidate i with a neighbour whose region holds the cell: topology culling may drop it
+  // when this is not 0.
+  auto edgeRegionMask = [&](int i) {
+    const TriangleTopology& entry = topology.triangles[i];
+    std::uint8_t mask = 0;
+    for (int e = 0; e < 3; ++e) {
+      if (entry.neighbours[e + 1] > entry.neighbours[e] &&
+          cellInEdgeRegion(geometry.leaf_corners[i], entry.outward[e], e, center, half, margin)) {
+        mask |= std::uint8_t(1 << e);
+      }
+    }
+    return mask;
+  };
+  // The masks computed while counting, kept for culling below.
+  scratch.early_masks.clear();
+  auto certainlyListed = [&](int i) {
     if (context.culling) {
-      const TriangleTopology& entry = topology.triangles[t];
-      for (int e = 0; e < 3; ++e) {
-        if (entry.neighbours[e + 1] > entry.neighbours[e] &&
-            cellInEdgeRegion(geometry.corners[t], entry.outward[e], e, center, half, margin)) {
-          scratch.early_state.push_back(kNotTested);
-          scratch.early_quick_bounds.push_back(0);
-          scratch.early_center_distances.push_back(0);
-          return false;
-        }
+      const std::uint8_t mask = edgeRegionMask(i);
+      scratch.early_masks.push_back(mask);
+      if (mask) {
+        scratch.early_state.push_back(kNotTested);
+        scratch.early_quick_bounds.push_back(0);
+        scratch.early_center_distances.push_back(0);
+        return false;
       }
     }
     double d_min, d_center;
-    const bool excluded = exclusionTests(t, d_min, d_center);
+    const bool excluded = exclusionTests(i, d_min, d_center);
     scratch.early_state.push_back(excluded ? kExcluded : kKept);
     scratch.early_quick_bounds.push_back(d_min);
     scratch.early_center_distances.push_back(d_center);
@@ -465,8 +494,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     if ((outside.array() - half).max(0.0).matrix().squaredNorm() > upper_bound_squared) continue;
     if (cone_usable && coneExcludes(outside.norm(), node.center, node.radius)) continue;
     if (node.isLeaf()) {
-      candidates.insert(candidates.end(), geometry.bvh.triangle_ids.begin() + node.first,
-                        geometry.bvh.triangle_ids.begin() + node.first + node.count);
+      for (int i = node.first; i < node.first + node.count; ++i) candidates.push_back(i);
       if (count_early) {
         for (std::size_t n = candidates.size() - node.count; n < candidates.size(); ++n) {
           if (certainlyListed(candidates[n]) && ++certain_count > longest_stored) {
@@ -502,11 +530,11 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   // drops, the second round reaches the same least fixed point as a single round after the tests.
   const bool culling = context.culling && candidate_count > 1;
   std::uint32_t missing = 0, stays = 0, undecided = 0, left = 0;
-  // Whether undecided triangle t may leave now: some edge whose region holds the voxel has a neighbour that
+  // Whether undecided candidate i may leave now: some edge whose region holds the voxel has a neighbour that
   // is not undecided.
-  auto mayLeave = [&](int t) {
-    const TriangleTopology& entry = topology.triangles[t];
-    const std::uint8_t mask = scratch.triangle_masks[t];
+  auto mayLeave = [&](int i) {
+    const TriangleTopology& entry = topology.triangles[i];
+    const std::uint8_t mask = scratch.triangle_masks[i];
     for (int e = 0; e < 3; ++e) {
       if (!(mask >> e & 1)) continue;
       for (int m = entry.neighbours[e]; m < entry.neighbours[e + 1]; ++m) {
@@ -521,16 +549,16 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     std::vector<std::int32_t>& pending = scratch.pending;
     pending.clear();
     for (std::uint32_t n = 0; n < size; ++n) {
-      const int t = candidates[n];
-      if (scratch.marks[t] == undecided && mayLeave(t)) {
-        scratch.marks[t] = left;
-        pending.push_back(t);
+      const int i = candidates[n];
+      if (scratch.marks[i] == undecided && mayLeave(i)) {
+        scratch.marks[i] = left;
+        pending.push_back(i);
       }
     }
     while (!pending.empty()) {
-      const int t = pending.back();
+      const int i = pending.back();
       pending.pop_back();
-      const TriangleTopology& entry = topology.triangles[t];
+      const TriangleTopology& entry = topology.triangles[i];
       for (int m = entry.neighbours[0]; m < entry.neighbours[3]; ++m) {
         const int other = topology.edge_neighbours[m];
         if (scratch.marks[other] == undecided && mayLeave(other)) {
@@ -552,17 +580,10 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     undecided = missing + 2;                // droppable, not yet shown to leave
     left = missing + 3;                     // shown to leave
     for (std::uint32_t n = 0; n < candidate_count; ++n) {
-      const int t = candidates[n];
-      const TriangleTopology& entry = topology.triangles[t];
-      std::uint8_t mask = 0;
-      for (int e = 0; e < 3; ++e) {
-        if (entry.neighbours[e + 1] > entry.neighbours[e] &&
-            cellInEdgeRegion(geometry.corners[t], entry.outward[e], e, center, half, margin)) {
-          mask |= std::uint8_t(1 << e);
-        }
-      }
-      scratch.marks[t] = mask ? undecided : stays;
-      scratch.triangle_masks[t] = mask;
+      const int i = candidates[n];
+      const std::uint8_t mask = count_early ? scratch.early_masks[n] : edgeRegionMask(i);
+      scratch.marks[i] = mask ? undecided : stays;
+      scratch.triangle_masks[i] = mask;
       any_droppable = any_droppable || mask;
     }
     if (any_droppable) propagate(candidate_count);
@@ -577,8 +598,8 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   scratch.center_distances.clear();
   bool any_excluded = false;
   for (std::uint32_t n = 0; n < candidate_count; ++n) {
-    const int t = candidates[n];
-    if (culling && scratch.marks[t] == left) continue;
+    const int i = candidates[n];
+    if (culling && scratch.marks[i] == left) continue;
     double d_min, d_center;
     bool excluded;
     if (count_early && scratch.early_state[n] != kNotTested) {
@@ -586,14 +607,14 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
       d_min = scratch.early_quick_bounds[n];
       d_center = scratch.early_center_distances[n];
     } else {
-      excluded = exclusionTests(t, d_min, d_center);
+      excluded = exclusionTests(i, d_min, d_center);
     }
     if (excluded) {
-      if (culling) scratch.marks[t] = missing;
+      if (culling) scratch.marks[i] = missing;
       any_excluded = true;
       continue;
     }
-    candidates[count] = t;  // compacted in place: n >= count
+    candidates[count] = i;  // compacted in place: n >= count
     scratch.quick_bounds.push_back(d_min);
     scratch.center_distances.push_back(d_center);
     ++count;
@@ -608,16 +629,16 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   scratch.entry_bounds.clear();
   scratch.entry_exact.clear();
   for (std::uint32_t n = 0; n < count; ++n) {
-    const int t = candidates[n];
-    if (culling && scratch.marks[t] == left) continue;
+    const int i = candidates[n];
+    if (culling && scratch.marks[i] == left) continue;
     double d_min = scratch.quick_bounds[n];
     const bool exact = !(scratch.center_distances[n] < certain);
     if (exact) {
-      const auto& c = geometry.corners[t];
+      const auto& c = geometry.leaf_corners[i];
       d_min = detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], d_min);
       if (d_min > upper_bound) continue;
     }
-    out.ids.push_back(t);
+    out.ids.push_back(leaf_triangle[i]);
     scratch.entry_bounds.push_back(d_min);
     scratch.entry_exact.push_back(exact);
   }
@@ -716,6 +737,20 @@ float lowerFloat(double x) {
   while (double(f) > x) f = std::nextafter(f, 0.0f);
   return f;
 }
+
+// Waits for `group` inside `arena` when leaving a scope early: a wait from outside the arena could not run
+// the group's task itself, which with a single thread nothing else would. Whatever the task threw is
+// dropped there, as an exception is already on its way; the normal path waits (and rethrows) explicitly.
+struct TaskGroupWaiter {
+  tbb::task_arena& arena;
+  tbb::task_group& group;
+  ~TaskGroupWaiter() {
+    try {
+      arena.execute([&] { group.wait(); });
+    } catch (...) {
+    }
+  }
+};
 
 // Shared across the root cells' builds: the bytes committed so far, against the memory limit.
 struct Budget {
@@ -846,7 +881,6 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   CflModel model;
   model.geometry = makeMeshModel(std::move(mesh));
   const MeshModel& geometry = model.geometry;
-  model.sign = analyzeMeshSign(geometry);
   model.padding = options.padding;
   model.topology_culling = options.topology_culling;
   RegionTree& tree = model.regions;
@@ -870,6 +904,12 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
     throw Error(message.str());
   }
   const int threads = workerCount(options.threads);
+  tbb::task_arena arena(threads);
+  // The sign analysis is serial and nothing else reads it: one worker runs it while the others go on with
+  // the topology, the corners and the cells.
+  tbb::task_group sign_task;
+  arena.execute([&] { sign_task.run([&] { model.sign = analyzeMeshSign(geometry); }); });
+  const TaskGroupWaiter sign_waiter{arena, sign_task};
   const Topology topology = options.topology_culling ? makeTopology(geometry) : Topology();
   const BuildContext context{geometry, topology, options.topology_culling};
   std::vector<double> triangle_edge(geometry.corners.size());
@@ -886,7 +926,6 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   std::vector<double> root_corner_distance(corner_count);
   std::vector<int> root_corner_triangle(corner_count, -1);
   auto cornerIndex = [&](int i, int j, int k) { return i + std::int64_t(corner_dims[0]) * (j + std::int64_t(corner_dims[1]) * k); };
-  tbb::task_arena arena(threads);
   std::atomic<std::int64_t> done{0};
   auto report = [&](double begin, double end, std::int64_t total) {
     progress(begin + (end - begin) * double(done.load()) / double(std::max<std::int64_t>(total, 1)));
@@ -941,6 +980,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   });
   root_corner_distance = {};
   root_corner_triangle = {};
+  arena.execute([&] { sign_task.wait(); });
 
   // 3. Flatten: root cells first, then each root cell's descendants in turn; identical lists (same ids,
   //    bounds and depth, so the bounds' unit agrees) stored once.

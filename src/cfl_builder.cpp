@@ -717,6 +717,14 @@ float lowerFloat(double x) {
   return f;
 }
 
+// RegionTree::corner_distance_unit for corners up to `farthest` edges of their leaf from the mesh: the finest
+// power of two that stores them below saturation, with a little room.
+double cornerDistanceUnitFor(double farthest) {
+  double unit = RegionTree::kFinestCornerDistanceUnit;
+  while (unit < 1 && !(farthest < 0.99 * double(RegionTree::kCornerDistanceSaturated) * unit)) unit *= 2;
+  return unit;
+}
+
 // Shared across the root cells' builds: the bytes committed so far, against the memory limit.
 struct Budget {
   std::atomic<std::int64_t> bytes{0};
@@ -766,7 +774,7 @@ class SubtreeBuilder {
  private:
   // A leaf's own arrays and its node, not counting its list.
   static constexpr std::int64_t kLeafBytes =
-      sizeof(std::uint32_t) * 2 + sizeof(float) + sizeof(std::array<float, 8>);
+      sizeof(std::uint32_t) * 2 + sizeof(float) + sizeof(decltype(RegionTree::leaf_corner_distance)::value_type);
 
   bool shouldSplit(const Subtree& out, std::size_t begin, std::uint32_t length, double size, int depth) const {
     if (!adaptive_ || depth >= kDeepest) return false;
@@ -945,12 +953,18 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   // 3. Flatten: root cells first, then each root cell's descendants in turn; identical lists (same ids,
   //    bounds and depth, so the bounds' unit agrees) stored once.
   std::int64_t node_count = root_count, leaf_count = 0, entry_count = 0, stored_count = 0;
+  double farthest_corner = 0;  // in edges of the corner's leaf
   for (const Subtree& subtree : subtrees) {
     node_count += std::int64_t(subtree.nodes.size()) - 1;
     leaf_count += std::int64_t(subtree.list_length.size());
     entry_count += std::int64_t(subtree.lists.ids.size());
     for (std::uint32_t length : subtree.list_length) stored_count += length != RegionTree::kNoList;
+    for (std::size_t leaf = 0; leaf < subtree.corner_distance.size(); ++leaf) {
+      const double size = tree.cellSize(subtree.depth[leaf]);
+      for (float distance : subtree.corner_distance[leaf]) farthest_corner = std::max(farthest_corner, distance / size);
+    }
   }
+  tree.corner_distance_unit = cornerDistanceUnitFor(farthest_corner);
   if (node_count >= std::int64_t(RegionTree::kLeafBit) || leaf_count >= std::int64_t(RegionTree::kLeafBit)) {
     throw Error("the regions need " + std::to_string(node_count) + " cells, more than a RegionTree indexes");
   }
@@ -988,7 +1002,10 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       ++stats.leaves_per_depth[depth];
       tree.max_depth = std::max<int>(tree.max_depth, depth);
       tree.leaf_lower_bound.push_back(subtree.lower_bound[leaf]);
-      tree.leaf_corner_distance.push_back(subtree.corner_distance[leaf]);
+      const double corner_unit = tree.cornerDistanceUnit(tree.cellSize(depth));
+      std::array<std::uint16_t, 8> corners;
+      for (int c = 0; c < 8; ++c) corners[c] = RegionTree::encodeCornerDistance(subtree.corner_distance[leaf][c], corner_unit);
+      tree.leaf_corner_distance.push_back(corners);
       if (subtree.list_length[leaf] == RegionTree::kNoList) {
         tree.leaf_list.push_back(RegionTree::kNoList);
         ++stats.leaves_without_list;

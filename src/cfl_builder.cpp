@@ -1059,8 +1059,8 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
                        capacityBytes(tree.list_entry_ids) +
                        capacityBytes(tree.list_high_ids) + capacityBytes(tree.list_entry_bounds) +
                        capacityBytes(geometry.mesh.vertices) + capacityBytes(geometry.mesh.triangles) +
-                       capacityBytes(geometry.corners) + capacityBytes(geometry.spheres) + capacityBytes(geometry.planes) +
-                       capacityBytes(geometry.leaf_corners) + capacityBytes(geometry.leaf_spheres) +
+                       capacityBytes(geometry.corners.in_leaf_order) + capacityBytes(geometry.corners.leaf_position) +
+                       capacityBytes(geometry.spheres) + capacityBytes(geometry.planes) + capacityBytes(geometry.leaf_spheres) +
                        capacityBytes(geometry.leaf_planes) + capacityBytes(geometry.bvh.nodes) + capacityBytes(geometry.compact_nodes) +
                        capacityBytes(geometry.bvh.triangle_ids) + memoryBytes(model.sign);
   stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -170,7 +170,7 @@ std::vector<std::uint32_t> spatialOrder(const CflModel& model, const Eigen::Isom
 void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, double& best_squared, int& best_triangle,
                          Eigen::Vector3d* closest, detail::PointTriangles4 four) {
   const std::size_t leaves = geometry.bvh.triangle_ids.size();
-  if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.leaf_corners.size() == leaves &&
+  if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.corners.in_leaf_order.size() == leaves &&
       geometry.leaf_spheres.size() == leaves && geometry.leaf_planes.size() == leaves) {
 #if CFL_X86_64_V3_KERNELS
     if (four != nullptr) {
@@ -179,7 +179,7 @@ void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, do
     }
 #endif
     detail::nearestTriangleCompactBounded(geometry, p, best_squared, best_triangle, closest, four);
-  } else if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.leaf_corners.size() == leaves) {
+  } else if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.corners.in_leaf_order.size() == leaves) {
     detail::nearestTriangleCompact(geometry, p, best_squared, best_triangle, closest);
   } else {
     detail::nearestTriangle(geometry, p, best_squared, best_triangle, closest);

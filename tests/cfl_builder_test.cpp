@@ -460,8 +460,8 @@ TEST(CflBuilder, StorageIsWellFormedAndStatisticsMatchIt) {
           bytes(tree.nodes) + bytes(tree.leaf_list) + bytes(tree.leaf_lower_bound) + bytes(tree.leaf_corner_distance) +
           bytes(tree.list_offsets) + bytes(tree.list_entry_ids) + bytes(tree.list_high_ids) +
           bytes(tree.list_entry_bounds) +
-          bytes(geometry.mesh.vertices) + bytes(geometry.mesh.triangles) + bytes(geometry.corners) +
-          bytes(geometry.spheres) + bytes(geometry.planes) + bytes(geometry.leaf_corners) +
+          bytes(geometry.mesh.vertices) + bytes(geometry.mesh.triangles) + bytes(geometry.corners.in_leaf_order) +
+          bytes(geometry.corners.leaf_position) + bytes(geometry.spheres) + bytes(geometry.planes) +
           bytes(geometry.leaf_spheres) + bytes(geometry.leaf_planes) + bytes(geometry.bvh.nodes) +
           bytes(geometry.compact_nodes) +
           bytes(geometry.bvh.triangle_ids) + bytes(model.sign.welded_vertex) + bytes(model.sign.neighbors) +

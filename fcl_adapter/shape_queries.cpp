@@ -99,7 +99,7 @@ bool meshTriangleInside(const cfl::MeshModel& mesh, const Transform& tf_c, const
     if ((node.box().min.array() > box_M.max.array()).any() || (node.box().max.array() < box_M.min.array()).any()) continue;
     if (node.isLeaf()) {
       for (int i = node.first; i < node.first + node.count; ++i)
-        if (shape.contains(X_SM * mesh.leaf_corners[i][0])) return true;
+        if (shape.contains(X_SM * mesh.corners.in_leaf_order[i][0])) return true;
       continue;
     }
     stack[top++] = node.first + 1;
@@ -197,7 +197,7 @@ void polyhedronContacts(const Geometry& cfl, const cfl::CflModel& model, const T
       continue;
     }
     for (int i = node.first; i < node.first + node.count && added < budget; ++i) {
-      const auto& c = mesh.leaf_corners[i];
+      const auto& c = mesh.corners.in_leaf_order[i];
       const Eigen::Vector3d t_S[3] = {X_SM * c[0], X_SM * c[1], X_SM * c[2]};
       Eigen::Vector3d point_S = t_S[0];
       bool hit = polyhedron.contains(t_S[0]);

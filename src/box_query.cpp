@@ -261,7 +261,7 @@ void searchBvh(const MeshModel& mesh, const BoxFrame& box, Best& best) {
     if (node.isLeaf()) {
       // A leaf holds several triangles: each is first bounded by its own sphere against the box.
       for (int i = node.first; i < node.first + node.count; ++i)
-        considerTriangle(box, mesh.leaf_corners[i], mesh.leaf_spheres[i], mesh.leaf_planes[i], mesh.bvh.triangle_ids[i],
+        considerTriangle(box, mesh.corners.in_leaf_order[i], mesh.leaf_spheres[i], mesh.leaf_planes[i], mesh.bvh.triangle_ids[i],
                          best);
       if (best.squared == 0) break;
       continue;

@@ -122,7 +122,7 @@ struct TriangleTopology {
 
 // Indexed by the triangles' positions in the Bvh's leaf order (Bvh::triangle_ids), as are the builder's
 // candidates: a cell's candidates come from a few Bvh leaves, each a run of consecutive positions, so their
-// topology, corners and spheres (MeshModel::leaf_corners, leaf_spheres) lie side by side in memory.
+// topology, corners and spheres (MeshModel::corners.in_leaf_order, leaf_spheres) lie side by side in memory.
 struct Topology {
   std::vector<TriangleTopology> triangles;
   std::vector<int> edge_neighbours;  // leaf positions too
@@ -145,7 +145,7 @@ Topology makeTopology(const MeshModel& geometry) {
   topology.triangles.resize(order.size());
   for (int n = 0; n < int(order.size()); ++n) {
     const int t = order[n];
-    const auto& c = geometry.leaf_corners[n];
+    const auto& c = geometry.corners.in_leaf_order[n];
     TriangleTopology& entry = topology.triangles[n];
     const Eigen::Vector3d normal = (c[1] - c[0]).cross(c[2] - c[0]);
     const double scale = std::max({(c[1] - c[0]).squaredNorm(), (c[2] - c[1]).squaredNorm(), (c[0] - c[2]).squaredNorm()});
@@ -421,7 +421,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   // it, else its quick bound and center distance.
   const auto& leaf_triangle = geometry.bvh.triangle_ids;
   auto exclusionTests = [&](int i, double& d_min, double& d_center) {
-    const auto& c = geometry.leaf_corners[i];
+    const auto& c = geometry.corners.in_leaf_order[i];
     Eigen::Vector3d closest;
     d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
     bool excluded = d_center - half_diagonal > upper_bound;
@@ -454,7 +454,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     std::uint8_t mask = 0;
     for (int e = 0; e < 3; ++e) {
       if (entry.neighbours[e + 1] > entry.neighbours[e] &&
-          cellInEdgeRegion(geometry.leaf_corners[i], entry.outward[e], e, center, half, margin)) {
+          cellInEdgeRegion(geometry.corners.in_leaf_order[i], entry.outward[e], e, center, half, margin)) {
         mask |= std::uint8_t(1 << e);
       }
     }
@@ -634,7 +634,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     double d_min = scratch.quick_bounds[n];
     const bool exact = !(scratch.center_distances[n] < certain);
     if (exact) {
-      const auto& c = geometry.leaf_corners[i];
+      const auto& c = geometry.corners.in_leaf_order[i];
       d_min = detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], d_min);
       if (d_min > upper_bound) continue;
     }
@@ -752,6 +752,14 @@ struct TaskGroupWaiter {
   }
 };
 
+// RegionTree::corner_distance_unit for corners up to `farthest` edges of their leaf from the mesh: the finest
+// power of two that stores them below saturation, with a little room.
+double cornerDistanceUnitFor(double farthest) {
+  double unit = RegionTree::kFinestCornerDistanceUnit;
+  while (unit < 1 && !(farthest < 0.99 * double(RegionTree::kCornerDistanceSaturated) * unit)) unit *= 2;
+  return unit;
+}
+
 // Shared across the root cells' builds: the bytes committed so far, against the memory limit.
 struct Budget {
   std::atomic<std::int64_t> bytes{0};
@@ -801,7 +809,7 @@ class SubtreeBuilder {
  private:
   // A leaf's own arrays and its node, not counting its list.
   static constexpr std::int64_t kLeafBytes =
-      sizeof(std::uint32_t) * 2 + sizeof(float) + sizeof(std::array<float, 8>);
+      sizeof(std::uint32_t) * 2 + sizeof(float) + sizeof(decltype(RegionTree::leaf_corner_distance)::value_type);
 
   bool shouldSplit(const Subtree& out, std::size_t begin, std::uint32_t length, double size, int depth) const {
     if (!adaptive_ || depth >= kDeepest) return false;
@@ -985,12 +993,18 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   // 3. Flatten: root cells first, then each root cell's descendants in turn; identical lists (same ids,
   //    bounds and depth, so the bounds' unit agrees) stored once.
   std::int64_t node_count = root_count, leaf_count = 0, entry_count = 0, stored_count = 0;
+  double farthest_corner = 0;  // in edges of the corner's leaf
   for (const Subtree& subtree : subtrees) {
     node_count += std::int64_t(subtree.nodes.size()) - 1;
     leaf_count += std::int64_t(subtree.list_length.size());
     entry_count += std::int64_t(subtree.lists.ids.size());
     for (std::uint32_t length : subtree.list_length) stored_count += length != RegionTree::kNoList;
+    for (std::size_t leaf = 0; leaf < subtree.corner_distance.size(); ++leaf) {
+      const double size = tree.cellSize(subtree.depth[leaf]);
+      for (float distance : subtree.corner_distance[leaf]) farthest_corner = std::max(farthest_corner, distance / size);
+    }
   }
+  tree.corner_distance_unit = cornerDistanceUnitFor(farthest_corner);
   if (node_count >= std::int64_t(RegionTree::kLeafBit) || leaf_count >= std::int64_t(RegionTree::kLeafBit)) {
     throw Error("the regions need " + std::to_string(node_count) + " cells, more than a RegionTree indexes");
   }
@@ -1028,7 +1042,10 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       ++stats.leaves_per_depth[depth];
       tree.max_depth = std::max<int>(tree.max_depth, depth);
       tree.leaf_lower_bound.push_back(subtree.lower_bound[leaf]);
-      tree.leaf_corner_distance.push_back(subtree.corner_distance[leaf]);
+      const double corner_unit = tree.cornerDistanceUnit(tree.cellSize(depth));
+      std::array<std::uint16_t, 8> corners;
+      for (int c = 0; c < 8; ++c) corners[c] = RegionTree::encodeCornerDistance(subtree.corner_distance[leaf][c], corner_unit);
+      tree.leaf_corner_distance.push_back(corners);
       if (subtree.list_length[leaf] == RegionTree::kNoList) {
         tree.leaf_list.push_back(RegionTree::kNoList);
         ++stats.leaves_without_list;
@@ -1082,8 +1099,8 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
                        capacityBytes(tree.list_entry_ids) +
                        capacityBytes(tree.list_high_ids) + capacityBytes(tree.list_entry_bounds) +
                        capacityBytes(geometry.mesh.vertices) + capacityBytes(geometry.mesh.triangles) +
-                       capacityBytes(geometry.corners) + capacityBytes(geometry.spheres) + capacityBytes(geometry.planes) +
-                       capacityBytes(geometry.leaf_corners) + capacityBytes(geometry.leaf_spheres) +
+                       capacityBytes(geometry.corners.in_leaf_order) + capacityBytes(geometry.corners.leaf_position) +
+                       capacityBytes(geometry.spheres) + capacityBytes(geometry.planes) + capacityBytes(geometry.leaf_spheres) +
                        capacityBytes(geometry.leaf_planes) + capacityBytes(geometry.bvh.nodes) + capacityBytes(geometry.compact_nodes) +
                        capacityBytes(geometry.bvh.triangle_ids) + memoryBytes(model.sign);
   stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -60,19 +60,21 @@ constexpr std::uint32_t kTagList = makeTag("LIST");
 constexpr std::uint32_t kTagEntryBounds = makeTag("LBND");
 constexpr std::uint32_t kTagStatistics = makeTag("STAT");
 
-// origin, root_size, root_dims, max_depth, padding, flags.
-constexpr std::size_t kTreeSectionSize = 3 * 8 + 8 + 3 * 4 + 4 + 8 + 4;
-// Per leaf in LEAF: its list (u32), lower bound (f32) and eight corner distances (f32).
-constexpr std::size_t kLeafRecordSize = 4 + 4 + 8 * 4;
+// origin, root_size, root_dims, max_depth, padding, flags, corner_distance_unit.
+constexpr std::size_t kTreeSectionSize = 3 * 8 + 8 + 3 * 4 + 4 + 8 + 4 + 8;
+// Per leaf in LEAF: its list (u32), lower bound (f32) and eight corner distances (u16).
+constexpr std::size_t kLeafRecordSize = 4 + 4 + 8 * 2;
 // Eight 8-byte figures, the flags and the size of leaves_per_depth; its entries follow.
 constexpr std::size_t kStatisticsFixedSize = 8 * 8 + 4 + 8;
 // RegionTree::forEachLeafInBox keeps its pending cells in a fixed stack sized for this depth.
 constexpr int kMaxTreeDepth = RegionTree::kMaxDepth;
 
-using CornerDistances = std::array<float, 8>;
+using CornerDistances = std::array<std::uint16_t, 8>;
 static_assert(sizeof(float) == 4 && std::numeric_limits<float>::is_iec559,
               "the file stores floats as IEEE-754 binary32 bit patterns");
-static_assert(sizeof(CornerDistances) == 8 * sizeof(float), "corner distances are copied in bulk as eight floats");
+static_assert(std::is_same_v<decltype(RegionTree::leaf_corner_distance)::value_type, CornerDistances> &&
+                  sizeof(CornerDistances) == 8 * sizeof(std::uint16_t),
+              "corner distances are copied in bulk as eight 16-bit integers");
 
 std::uint32_t loadU32(const unsigned char* p) {
   return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
@@ -131,8 +133,8 @@ class Writer {
     std::memcpy(&bits, &value, 8);
     u64(bits);
   }
-  // Integers and floats of 1, 4 or 8 bytes, or blocks of eight floats, each stored as its little-endian bit
-  // pattern.
+  // Integers and floats of 1, 2, 4 or 8 bytes, or blocks of eight corner distances, each stored as its
+  // little-endian bit pattern.
   template <typename T>
   void array(const std::vector<T>& values) {
     if constexpr (kBulkCopy || sizeof(T) == 1) {
@@ -153,13 +155,16 @@ class Writer {
   template <typename T>
   void element(const T& value) {
     if constexpr (std::is_same_v<T, CornerDistances>) {
-      for (float distance : value) element(distance);
+      for (std::uint16_t distance : value) element(distance);
+    } else if constexpr (sizeof(T) == 2) {
+      bytes_.push_back(static_cast<unsigned char>(value & 0xffu));
+      bytes_.push_back(static_cast<unsigned char>(value >> 8));
     } else if constexpr (sizeof(T) == 4) {
       std::uint32_t bits;
       std::memcpy(&bits, &value, 4);
       u32(bits);
     } else {
-      static_assert(sizeof(T) == 8, "arrays hold bytes, 32-bit or 64-bit values, or eight floats");
+      static_assert(sizeof(T) == 8, "arrays hold bytes, 16-, 32- or 64-bit values, or eight corner distances");
       std::uint64_t bits;
       std::memcpy(&bits, &value, 8);
       u64(bits);
@@ -224,14 +229,17 @@ class Reader {
   template <typename T>
   static const unsigned char* element(T& value, const unsigned char* p) {
     if constexpr (std::is_same_v<T, CornerDistances>) {
-      for (float& distance : value) p = element(distance, p);
+      for (std::uint16_t& distance : value) p = element(distance, p);
       return p;
+    } else if constexpr (sizeof(T) == 2) {
+      value = static_cast<T>(std::uint16_t(p[0]) | std::uint16_t(p[1]) << 8);
+      return p + 2;
     } else if constexpr (sizeof(T) == 4) {
       const std::uint32_t bits = loadU32(p);
       std::memcpy(&value, &bits, 4);
       return p + 4;
     } else {
-      static_assert(sizeof(T) == 8, "arrays hold bytes, 32-bit or 64-bit values, or eight floats");
+      static_assert(sizeof(T) == 8, "arrays hold bytes, 16-, 32- or 64-bit values, or eight corner distances");
       const std::uint64_t bits = loadU64(p);
       std::memcpy(&value, &bits, 8);
       return p + 8;
@@ -328,6 +336,14 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
   if (!tree.bounds().max.allFinite()) fail("regions far corner is not finite (root_size times root_dims overflows)");
   if (tree.max_depth < 0 || tree.max_depth > kMaxTreeDepth) {
     fail("regions max_depth is " + std::to_string(tree.max_depth) + ", must be in [0, " + std::to_string(kMaxTreeDepth) + "]");
+  }
+  // A power of two (frexp's mantissa exactly 1/2) in [kFinestCornerDistanceUnit, 1]: the query multiplies
+  // by it and relies on the product being exact.
+  int unit_exponent = 0;
+  if (!(tree.corner_distance_unit >= RegionTree::kFinestCornerDistanceUnit && tree.corner_distance_unit <= 1) ||
+      std::frexp(tree.corner_distance_unit, &unit_exponent) != 0.5) {
+    fail("regions corner_distance_unit is " + numberText(tree.corner_distance_unit) + ", must be a power of two in [" +
+         numberText(RegionTree::kFinestCornerDistanceUnit) + ", 1]");
   }
   if (!std::isfinite(model.padding) || model.padding < 1.0) {
     fail("padding is " + numberText(model.padding) + ", must be a finite factor >= 1");
@@ -455,13 +471,6 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
     if (!std::isfinite(lower) || lower < 0) {
       fail("leaf_lower_bound of leaf " + std::to_string(leaf) + " is " + numberText(lower) + ", must be finite and >= 0");
     }
-    for (int corner = 0; corner < 8; ++corner) {
-      const float distance = tree.leaf_corner_distance[leaf][corner];
-      if (!std::isfinite(distance) || distance < 0) {
-        fail("leaf_corner_distance of leaf " + std::to_string(leaf) + " corner " + std::to_string(corner) + " is " +
-             numberText(distance) + ", must be finite and >= 0");
-      }
-    }
   }
 
   const BuildStatistics& s = model.statistics;
@@ -557,6 +566,7 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
   out.i32(tree.max_depth);
   out.f64(model.padding);
   out.u32(model.topology_culling ? 1u : 0u);
+  out.f64(tree.corner_distance_unit);
 
   out.section(kTagNodes, node_size);
   out.u64(tree.nodes.size());
@@ -625,6 +635,9 @@ std::uint64_t checkHeader(const unsigned char* data, std::size_t available, std:
   // from one to the other, so no loader for them is kept.
   if (version == 1 || version == 2) {
     fail("a version-" + std::to_string(version) + " CFL file (uniform grid) from an earlier cfl: rebuild it with `cfl build`");
+  }
+  if (version == 3) {
+    fail("a version-3 CFL file (float corner distances) from an earlier cfl: rebuild it with `cfl build`");
   }
   if (version != kCflFileVersion) {
     fail("format version " + std::to_string(version) + " is not supported (this library reads version " +
@@ -710,6 +723,7 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
       const std::uint32_t flags = in.u32("flags");
       if (flags > 1u) in.fail("unknown flags " + hexU32(flags));
       model.topology_culling = (flags & 1u) != 0;
+      tree.corner_distance_unit = in.f64("corner_distance_unit");
     } else if (tag == kTagNodes) {
       once(seen_nodes);
       tree.nodes.resize(in.count(4, "node count"));

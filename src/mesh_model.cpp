@@ -64,14 +64,20 @@ MeshModel makeMeshModel(TriangleMesh mesh) {
   // A mesh read from a file grew by push_back: up to half of its capacity is slack.
   model.mesh.vertices.shrink_to_fit();
   model.mesh.triangles.shrink_to_fit();
-  model.corners.resize(model.mesh.triangles.size());
-  for (std::size_t t = 0; t < model.mesh.triangles.size(); ++t) {
-    for (int corner = 0; corner < 3; ++corner) model.corners[t][corner] = model.mesh.vertices[model.mesh.triangles[t][corner]];
+  model.bvh = buildBvh(model.mesh, kBvhLeafTriangles);
+  const std::size_t count = model.bvh.triangle_ids.size();
+  TriangleCorners& corners = model.corners;
+  corners.in_leaf_order.resize(count);
+  corners.leaf_position.resize(count);
+  for (std::size_t n = 0; n < count; ++n) {
+    const int t = model.bvh.triangle_ids[n];
+    corners.leaf_position[std::size_t(t)] = std::int32_t(n);
+    for (int k = 0; k < 3; ++k) corners.in_leaf_order[n][k] = model.mesh.vertices[model.mesh.triangles[std::size_t(t)][k]];
   }
-  model.spheres.resize(model.corners.size());
-  model.planes.resize(model.corners.size());
-  for (std::size_t t = 0; t < model.corners.size(); ++t) {
-    const auto& c = model.corners[t];
+  model.spheres.resize(count);
+  model.planes.resize(count);
+  for (std::size_t t = 0; t < count; ++t) {
+    const auto& c = corners[t];
     model.spheres[t] = boundingSphere(c);
     // The query prunes a pair when the plane puts the other triangle beyond the best distance so far: a
     // normal off by an angle a moves that bound by a times the corners' offsets. The plain cross product of
@@ -89,14 +95,10 @@ MeshModel makeMeshModel(TriangleMesh mesh) {
       model.planes[t].setZero();
     }
   }
-  model.bvh = buildBvh(model.mesh, kBvhLeafTriangles);
-  const std::size_t count = model.bvh.triangle_ids.size();
-  model.leaf_corners.resize(count);
   model.leaf_spheres.resize(count);
   model.leaf_planes.resize(count);
   for (std::size_t n = 0; n < count; ++n) {
     const int t = model.bvh.triangle_ids[n];
-    model.leaf_corners[n] = model.corners[t];
     model.leaf_spheres[n] = model.spheres[t];
     model.leaf_planes[n] = model.planes[t];
   }

@@ -170,7 +170,7 @@ std::vector<std::uint32_t> spatialOrder(const CflModel& model, const Eigen::Isom
 void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, double& best_squared, int& best_triangle,
                          Eigen::Vector3d* closest, detail::PointTriangles4 four) {
   const std::size_t leaves = geometry.bvh.triangle_ids.size();
-  if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.leaf_corners.size() == leaves &&
+  if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.corners.in_leaf_order.size() == leaves &&
       geometry.leaf_spheres.size() == leaves && geometry.leaf_planes.size() == leaves) {
 #if CFL_X86_64_V3_KERNELS
     if (four != nullptr) {
@@ -179,7 +179,7 @@ void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, do
     }
 #endif
     detail::nearestTriangleCompactBounded(geometry, p, best_squared, best_triangle, closest, four);
-  } else if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.leaf_corners.size() == leaves) {
+  } else if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.corners.in_leaf_order.size() == leaves) {
     detail::nearestTriangleCompact(geometry, p, best_squared, best_triangle, closest);
   } else {
     detail::nearestTriangle(geometry, p, best_squared, best_triangle, closest);
@@ -268,15 +268,17 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       return;
     }
     // The leaf's corner distances promise a triangle within (corner distance + |p - corner|) of p, distance
-    // being 1-Lipschitz. Corner distances are rounded down to float: inflated by far more than a float's
-    // rounding, the promise holds. (Near the surface, where leaves have lists, the first entries' exact
-    // tests beat it: the scan above does without.)
-    const std::array<float, 8>& corner_distance = regions.leaf_corner_distance[cell.leaf];
+    // being 1-Lipschitz. The stored corner distances give upper bounds (RegionTree::cornerDistanceUpper):
+    // inflated by far more than the build's float rounding, the promise holds. (Near the surface, where
+    // leaves have lists, the first entries' exact tests beat it: the scan above does without.)
+    const std::array<std::uint16_t, 8>& corner_distance = regions.leaf_corner_distance[cell.leaf];
+    const double corner_unit = regions.cornerDistanceUnit(cell.size);
     double promise = std::numeric_limits<double>::infinity();
     for (int c = 0; c < 8; ++c) {
       const Eigen::Vector3d corner =
           cell.min_corner + cell.size * Eigen::Vector3d(double(c & 1), double((c >> 1) & 1), double(c >> 2));
-      promise = std::min(promise, double(corner_distance[c]) * (1 + 1e-6) + (p_M - corner).norm());
+      promise = std::min(promise, RegionTree::cornerDistanceUpper(corner_distance[c], corner_unit) * (1 + 1e-6) +
+                                      (p_M - corner).norm());
     }
     promise *= 1 + 1e-9;
     double seed_squared = promise * promise;

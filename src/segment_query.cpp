@@ -183,7 +183,7 @@ Closest closestTriangle(const CflModel& model, const Eigen::Vector3d& a, const E
         const double s0 = plane.head<3>().dot(a) - plane.w(), s1 = plane.head<3>().dot(b) - plane.w();
         const double gap = s0 > 0 && s1 > 0 ? std::min(s0, s1) : (s0 < 0 && s1 < 0 ? -std::max(s0, s1) : 0.0);
         if (gap * gap >= best.squared) continue;
-        if (segmentTriangleBelow(a, b, mesh.leaf_corners[i], plane, best.squared, best.on_segment, best.on_mesh))
+        if (segmentTriangleBelow(a, b, mesh.corners.in_leaf_order[i], plane, best.squared, best.on_segment, best.on_mesh))
           best.triangle = mesh.bvh.triangle_ids[i];
       }
       continue;
@@ -312,7 +312,7 @@ std::size_t findTrianglesNearSegment(const CflModel& model, const Eigen::Isometr
     if (nodeLowerBound(node, a, ab, ab_squared, segment_box) > radius) continue;
     if (node.isLeaf()) {
       for (int i = node.first; i < node.first + node.count; ++i) {
-        const auto& c = mesh.leaf_corners[i];
+        const auto& c = mesh.corners.in_leaf_order[i];
         Eigen::Vector3d s, q;
         const double d = segmentTriangleSquaredDistance(a, b, c[0], c[1], c[2], &s, &q);
         if (!(d <= radius_squared)) continue;

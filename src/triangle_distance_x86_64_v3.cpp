@@ -198,7 +198,7 @@ void scanPointList(const Vec& p, const PointListScan& list, const MeshModel& geo
                    int& best_triangle, Vec& closest) {
   const Eigen::Vector4d* spheres = geometry.spheres.data();
   const Eigen::Vector4d* planes = geometry.planes.data();
-  const std::array<Vec, 3>* corners = geometry.corners.data();
+  const TriangleCorners& corners = geometry.corners;
   PendingTriangleTests tests;
   tests.four = &pointTriangleSquaredDistances4;
   double best = std::sqrt(best_squared);
@@ -274,7 +274,7 @@ void fillBlock(PointListCache& cache, const MeshModel& geometry, std::uint32_t b
 
 void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& geometry, double& best_squared,
                          int& best_triangle, Vec& closest) {
-  const std::array<Vec, 3>* corners = geometry.corners.data();
+  const TriangleCorners& corners = geometry.corners;
   PendingTriangleTests tests;
   tests.four = &pointTriangleSquaredDistances4;
   double best = std::sqrt(best_squared);
@@ -354,7 +354,7 @@ void nearestTriangleBounded(const MeshModel& model, const Vec& p, double& best_s
         while (pass != 0) {
           const int k = __builtin_ctz(unsigned(pass));
           pass &= pass - 1;
-          if (tests.add(p, model.leaf_corners[i + k], model.bvh.triangle_ids[i + k], best_squared, best_triangle,
+          if (tests.add(p, model.corners.in_leaf_order[i + k], model.bvh.triangle_ids[i + k], best_squared, best_triangle,
                         closest)) {
             best = std::sqrt(best_squared);
           }

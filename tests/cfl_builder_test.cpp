@@ -313,6 +313,33 @@ TEST(CflBuilder, LeavesWithoutAListKeepAValidLowerBound) {
   EXPECT_EQ(failures, 0);
 }
 
+// The 16-bit corner distances are lower bounds (rounded down) whose next unit is an upper bound, whatever
+// the distance and the unit, and saturate instead of wrapping.
+TEST(CflBuilder, CornerDistanceEncodingBracketsTheDistance) {
+  test::Rng rng(11);
+  std::uniform_real_distribution<double> mantissa(0.5, 1.0);
+  std::uniform_int_distribution<int> exponent(-30, 10);
+  for (int n = 0; n < 200000; ++n) {
+    const double unit = std::ldexp(1.0, exponent(rng));
+    const double distance = n % 4 == 0 ? unit * std::floor(mantissa(rng) * 70000)  // exact multiples too
+                                       : std::ldexp(mantissa(rng), exponent(rng) + 17);
+    const std::uint16_t stored = RegionTree::encodeCornerDistance(distance, unit);
+    const double lower = RegionTree::cornerDistanceLower(stored, unit);
+    const double upper = RegionTree::cornerDistanceUpper(stored, unit);
+    ASSERT_LE(lower, distance) << distance << " in units of " << unit;
+    ASSERT_GE(upper, distance) << distance << " in units of " << unit;
+    if (stored != RegionTree::kCornerDistanceSaturated) {
+      ASSERT_LT(distance, lower + unit) << distance << " in units of " << unit;
+    } else {
+      ASSERT_GE(distance, 65535 * unit);
+    }
+  }
+  EXPECT_EQ(RegionTree::encodeCornerDistance(std::numeric_limits<double>::infinity(), 1.0),
+            RegionTree::kCornerDistanceSaturated);
+  EXPECT_EQ(RegionTree::encodeCornerDistance(std::numeric_limits<double>::quiet_NaN(), 1.0), 0);
+  EXPECT_EQ(RegionTree::encodeCornerDistance(-1.0, 1.0), 0);
+}
+
 TEST(CflBuilder, CornerDistancesMatchTheReferenceAndNeverExceedIt) {
   test::Rng rng(5);
   for (const NamedMesh& named : testMeshes()) {
@@ -329,15 +356,22 @@ TEST(CflBuilder, CornerDistancesMatchTheReferenceAndNeverExceedIt) {
         const int c = n % 8;
         const Eigen::Vector3d corner = leaf.min + leaf.size * Eigen::Vector3d(c & 1, (c >> 1) & 1, c >> 2);
         const double truth = test::referencePointMeshDistance(named.mesh, corner);
-        const double stored = tree.leaf_corner_distance[leaf.leaf][c];
-        // Stored as float rounded down: never above the truth (the reference carries a few ulps of rounding,
-        // and a corner on the surface a distance of pure noise, hence the 1e-15 terms), and below it by at
-        // most a float's rounding.
+        const std::uint16_t stored = tree.leaf_corner_distance[leaf.leaf][c];
+        const double unit = tree.cornerDistanceUnit(leaf.size);
+        const double lower = RegionTree::cornerDistanceLower(stored, unit);
+        const double upper = RegionTree::cornerDistanceUpper(stored, unit);
+        // The stored units bracket the truth: the lower bound never above it (the reference carries a few
+        // ulps of rounding, and a corner on the surface a distance of pure noise, hence the 1e-15 terms),
+        // the upper bound never below it beyond the build's float rounding, which the point query's 1e-6
+        // covers. The unit is fine enough for bounds (at most 1/1024 of an edge) and no corner of
+        // these meshes saturates.
         const double noise = 1e-15 * diagonal;
-        const bool ok = stored <= truth * (1 + 1e-15) + noise && stored >= truth * (1 - 3e-7) - noise;
+        const bool ok = lower <= truth * (1 + 1e-15) + noise && upper >= truth * (1 - 3e-7) - noise &&
+                        upper - lower <= leaf.size / 1024 && stored != RegionTree::kCornerDistanceSaturated;
         if (!ok && ++failures <= 5) {
           ADD_FAILURE() << named.name << " resolution " << resolution << " leaf " << leaf.leaf << " corner " << c
-                        << ": stored " << stored << ", reference " << truth << ", difference " << stored - truth;
+                        << ": stored " << stored << " units of " << unit << " (" << lower << " to " << upper
+                        << "), reference " << truth;
         }
       }
       EXPECT_EQ(failures, 0) << named.name;
@@ -426,8 +460,8 @@ TEST(CflBuilder, StorageIsWellFormedAndStatisticsMatchIt) {
           bytes(tree.nodes) + bytes(tree.leaf_list) + bytes(tree.leaf_lower_bound) + bytes(tree.leaf_corner_distance) +
           bytes(tree.list_offsets) + bytes(tree.list_entry_ids) + bytes(tree.list_high_ids) +
           bytes(tree.list_entry_bounds) +
-          bytes(geometry.mesh.vertices) + bytes(geometry.mesh.triangles) + bytes(geometry.corners) +
-          bytes(geometry.spheres) + bytes(geometry.planes) + bytes(geometry.leaf_corners) +
+          bytes(geometry.mesh.vertices) + bytes(geometry.mesh.triangles) + bytes(geometry.corners.in_leaf_order) +
+          bytes(geometry.corners.leaf_position) + bytes(geometry.spheres) + bytes(geometry.planes) +
           bytes(geometry.leaf_spheres) + bytes(geometry.leaf_planes) + bytes(geometry.bvh.nodes) +
           bytes(geometry.compact_nodes) +
           bytes(geometry.bvh.triangle_ids) + bytes(model.sign.welded_vertex) + bytes(model.sign.neighbors) +

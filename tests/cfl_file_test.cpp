@@ -73,6 +73,7 @@ void expectSameModel(const CflModel& a, const CflModel& b) {
   EXPECT_EQ(r.leaf_list, s.leaf_list);
   EXPECT_TRUE(sameBits(r.leaf_lower_bound, s.leaf_lower_bound));
   EXPECT_TRUE(sameBits(r.leaf_corner_distance, s.leaf_corner_distance));
+  EXPECT_TRUE(sameBits(r.corner_distance_unit, s.corner_distance_unit));
   EXPECT_EQ(r.list_offsets, s.list_offsets);
   EXPECT_EQ(r.list_entry_ids, s.list_entry_ids);
   EXPECT_EQ(r.list_high_ids, s.list_high_ids);
@@ -231,6 +232,9 @@ struct ByteWriter {
     std::memcpy(&bits, &value, 8);
     u64(bits);
   }
+  void u16(std::uint16_t value) {
+    for (int i = 0; i < 2; ++i) bytes.push_back(static_cast<unsigned char>(value >> (8 * i)));
+  }
   void f32(float value) {
     std::uint32_t bits;
     std::memcpy(&bits, &value, 4);
@@ -267,6 +271,7 @@ Bytes writeUnchecked(const CflModel& model) {
     out.u32(static_cast<std::uint32_t>(tree.max_depth));
     out.f64(model.padding);
     out.u32(model.topology_culling ? 1 : 0);
+    out.f64(tree.corner_distance_unit);
   });
   section("NODE", [&](ByteWriter& out) {
     out.u64(tree.nodes.size());
@@ -277,7 +282,7 @@ Bytes writeUnchecked(const CflModel& model) {
     for (std::uint32_t list : tree.leaf_list) out.u32(list);
     for (float bound : tree.leaf_lower_bound) out.f32(bound);
     for (const auto& corners : tree.leaf_corner_distance) {
-      for (float distance : corners) out.f32(distance);
+      for (std::uint16_t distance : corners) out.u16(distance);
     }
   });
   section("LIST", [&](ByteWriter& out) {
@@ -467,8 +472,8 @@ TEST(CflFile, BytesFollowTheDocumentedLittleEndianLayout) {
     EXPECT_EQ(bytes[9], 0x03);
     EXPECT_EQ(bytes[10], 0x02);
     EXPECT_EQ(bytes[11], 0x01);
-    EXPECT_EQ(getU32(bytes, 12), 3u);
-    EXPECT_EQ(kCflFileVersion, 3u);
+    EXPECT_EQ(getU32(bytes, 12), 4u);
+    EXPECT_EQ(kCflFileVersion, 4u);
     EXPECT_EQ(getU64(bytes, 16), bytes.size() - 32);
     EXPECT_EQ(getU32(bytes, 24), referenceCrc32(bytes.data() + 32, bytes.size() - 32));
     EXPECT_EQ(getU32(bytes, 28), referenceCrc32(bytes.data(), 28));
@@ -476,7 +481,8 @@ TEST(CflFile, BytesFollowTheDocumentedLittleEndianLayout) {
     EXPECT_EQ(bytes, writeUnchecked(*model));
     const char* order[] = {"MESH", "TREE", "NODE", "LEAF", "LIST", "LBND", "STAT"};
     for (int i = 0; i + 1 < 7; ++i) EXPECT_LT(sectionBody(bytes, order[i]), sectionBody(bytes, order[i + 1])) << order[i];
-    EXPECT_EQ(getU64(bytes, sectionBody(bytes, "TREE") - 8), 60u);
+    EXPECT_EQ(getU64(bytes, sectionBody(bytes, "TREE") - 8), 68u);
+    EXPECT_EQ(getU64(bytes, sectionBody(bytes, "LEAF") - 8), 8 + 24 * model->regions.leaf_list.size());
   }
 }
 
@@ -517,13 +523,15 @@ TEST(CflFile, WrongVersionAndEndiannessAreNamed) {
   expectRefused(bytes, "endianness marker");
 }
 
-// Versions 1 and 2 held a uniform grid; no loader is kept for them, and the message says what to do.
-TEST(CflFile, VersionsOneAndTwoAreRefusedWithTheRebuildMessage) {
-  for (std::uint32_t version : {1u, 2u}) {
+// Versions 1 and 2 held a uniform grid, version 3 float corner distances; no loader is kept for them, and
+// the message says what to do.
+TEST(CflFile, VersionsOneToThreeAreRefusedWithTheRebuildMessage) {
+  for (std::uint32_t version : {1u, 2u, 3u}) {
     Bytes bytes = serializeCflModel(smallModel());
     putU32(bytes, 12, version);
     const std::string expected = std::string(kName) + ": a version-" + std::to_string(version) +
-                                 " CFL file (uniform grid) from an earlier cfl: rebuild it with `cfl build`";
+                                 (version == 3 ? " CFL file (float corner distances)" : " CFL file (uniform grid)") +
+                                 " from an earlier cfl: rebuild it with `cfl build`";
     // As an old file is (its checksums right for it), and as edited here (its header checksum now wrong):
     // the version is named first either way.
     for (bool reseal : {true, false}) {
@@ -982,7 +990,7 @@ TEST_F(CflFileStructure, NonFiniteValuesAreRefused) {
   const std::size_t tree = sectionBody(good_, "TREE");
   const std::size_t leaves = sectionBody(good_, "LEAF");
   const std::size_t leaf_count = smallModel().regions.leaf_list.size();
-  const std::size_t lower_at = leaves + 8 + 4 * leaf_count, corners_at = lower_at + 4 * leaf_count;
+  const std::size_t lower_at = leaves + 8 + 4 * leaf_count;
   expectRefused(edited([&](Bytes& b) { putF64(b, mesh + 16 + 24 * 2 + 8, nan); }), "vertex 2 has a non-finite");
   expectRefused(edited([&](Bytes& b) { putF64(b, tree + 8, inf); }), "regions origin is not finite");
   expectRefused(edited([&](Bytes& b) { putF64(b, tree + 24, nan); }), "root_size is nan");
@@ -994,10 +1002,10 @@ TEST_F(CflFileStructure, NonFiniteValuesAreRefused) {
   expectRefused(edited([&](Bytes& b) { putF32(b, lower_at + 4 * 3, std::numeric_limits<float>::quiet_NaN()); }),
                 "leaf_lower_bound of leaf 3 is nan");
   expectRefused(edited([&](Bytes& b) { putF32(b, lower_at + 4 * 3, -0.5f); }), "leaf_lower_bound of leaf 3 is -0.5");
-  expectRefused(edited([&](Bytes& b) { putF32(b, corners_at + 32 * 2 + 4 * 5, -std::numeric_limits<float>::infinity()); }),
-                "leaf_corner_distance of leaf 2 corner 5 is -inf");
-  expectRefused(edited([&](Bytes& b) { putF32(b, corners_at, std::numeric_limits<float>::infinity()); }),
-                "leaf_corner_distance of leaf 0 corner 0 is inf");
+  // The corner distances' unit: a power of two in [2^-16, 1], so that the query's products by it are exact.
+  for (double unit : {nan, inf, 0.0, -0.25, 2.0, 0.75, 1.0 / 131072, 3.0 / 65536}) {
+    expectRefused(edited([&](Bytes& b) { putF64(b, tree + 60, unit); }), "corner_distance_unit is");
+  }
   const std::size_t stat = sectionBody(good_, "STAT");
   expectRefused(edited([&](Bytes& b) { putF64(b, stat + 24, nan); }), "non-finite");
   expectRefused(edited([&](Bytes& b) { putF64(b, stat + 56, inf); }), "non-finite");
@@ -1073,7 +1081,8 @@ TEST(CflFile, ExtremeButValidValuesLoadAndQueryWithoutCrashing) {
       CflModel model = *good;
       RegionTree& tree = model.regions;
       for (std::size_t leaf = 0; leaf < tree.leaf_list.size(); ++leaf) {
-        if (variant != 1) tree.leaf_corner_distance[leaf].fill(huge);
+        if (variant != 1) tree.leaf_corner_distance[leaf].fill(RegionTree::kCornerDistanceSaturated);
+        if (variant == 0) tree.corner_distance_unit = 1;  // the coarsest unit: saturated means 65535 edges
         if (variant != 0) tree.leaf_lower_bound[leaf] = huge;
       }
       if (variant == 2) {  // every entry claims to be far: the lists then go in id order

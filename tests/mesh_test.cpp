@@ -172,12 +172,17 @@ TEST(MeshModel, LeafOrderedCopiesAreTheDataOfTheTrianglesTheBvhNames) {
     const MeshModel model = makeMeshModel(mesh);
     const std::size_t count = mesh.triangles.size();
     ASSERT_EQ(model.bvh.triangle_ids.size(), count);
-    ASSERT_EQ(model.leaf_corners.size(), count);
+    ASSERT_EQ(model.corners.in_leaf_order.size(), count);
+    ASSERT_EQ(model.corners.leaf_position.size(), count);
     ASSERT_EQ(model.leaf_spheres.size(), count);
     ASSERT_EQ(model.leaf_planes.size(), count);
     for (std::size_t n = 0; n < count; ++n) {
       const int t = model.bvh.triangle_ids[n];
-      for (int k = 0; k < 3; ++k) EXPECT_EQ(model.leaf_corners[n][k], model.corners[t][k]) << "position " << n;
+      // Stored once in leaf order, read by id through the position index: both must name the same data.
+      ASSERT_EQ(model.corners.leaf_position[t], static_cast<std::int32_t>(n)) << "triangle " << t;
+      for (int k = 0; k < 3; ++k) {
+        EXPECT_EQ(model.corners.in_leaf_order[n][k], mesh.vertices[mesh.triangles[t][k]]) << "position " << n;
+      }
       EXPECT_EQ(model.leaf_spheres[n], model.spheres[t]) << "position " << n;
       EXPECT_EQ(model.leaf_planes[n], model.planes[t]) << "position " << n;
     }
@@ -354,10 +359,10 @@ TEST(ModelShapeValidation, DistanceQueryRejectsModelsWhoseArraysDisagree) {
   const MeshModel b = makeMeshModel(test::makeTorusKnot(2, 3, 1.0, 0.3, 16, 4));
   const Eigen::Isometry3d X_WB = somePose();
   const std::vector<std::pair<std::function<void(MeshModel&)>, std::string>> damages = {
-      {[](MeshModel& m) { m.leaf_corners.clear(); }, "leaf_corners"},
+      {[](MeshModel& m) { m.corners.in_leaf_order.clear(); }, "corners.in_leaf_order"},
       {[](MeshModel& m) { m.leaf_spheres.pop_back(); }, "leaf_spheres"},
       {[](MeshModel& m) { m.leaf_planes.emplace_back(); }, "leaf_planes"},
-      {[](MeshModel& m) { m.corners.pop_back(); }, "corners"},
+      {[](MeshModel& m) { m.corners.leaf_position.pop_back(); }, "corners"},
       {[](MeshModel& m) { m.spheres.clear(); }, "spheres"},
       {[](MeshModel& m) { m.planes.pop_back(); }, "planes"},
       {[](MeshModel& m) { m.bvh.triangle_ids.pop_back(); }, "bvh.triangle_ids"},

@@ -63,7 +63,7 @@ std::vector<Eigen::Vector3d> samplePoints(const CflModel& model, int count, test
 
 double bruteForceSquared(const MeshModel& geometry, const Eigen::Vector3d& p_M) {
   double best = std::numeric_limits<double>::infinity();
-  for (const auto& c : geometry.corners) best = std::min(best, pointTriangleSquaredDistance(p_M, c[0], c[1], c[2]));
+  for (const auto& c : geometry.corners.in_leaf_order) best = std::min(best, pointTriangleSquaredDistance(p_M, c[0], c[1], c[2]));
   return best;
 }
 

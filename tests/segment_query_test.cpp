@@ -112,7 +112,7 @@ TEST(SegmentQuery, UnsignedEqualsBruteForceWithPointsOnTheSegmentAndTheTriangle)
       std::vector<SegmentDistance> near;
       findTrianglesNearSegment(c.model, X, p0, p1, radius, 1u << 30, &near);
       std::size_t expected = 0;
-      for (const auto& tri : c.model.geometry.corners) {
+      for (const auto& tri : c.model.geometry.corners.in_leaf_order) {
         const Eigen::Vector3d q[3] = {X * tri[0], X * tri[1], X * tri[2]};
         expected += std::sqrt(triangleTriangleSquaredDistance(s, q)) <= radius;
       }

@@ -28,7 +28,7 @@ const Eigen::Isometry3d kIdentity = Eigen::Isometry3d::Identity();
 // disagree.
 double bruteForcePointDistance(const MeshModel& mesh, const Eigen::Vector3d& p) {
   double best = INFINITY;
-  for (const auto& c : mesh.corners) best = std::min(best, pointTriangleSquaredDistance(p, c[0], c[1], c[2]));
+  for (const auto& c : mesh.corners.in_leaf_order) best = std::min(best, pointTriangleSquaredDistance(p, c[0], c[1], c[2]));
   return std::sqrt(best);
 }
 

@@ -143,11 +143,14 @@ void printStatistics(const CflModel& model, std::ostream& out) {
   out << format("  mesh:              %.1f B/triangle (vertices %.1f, triangles %.1f)\n",
                 perTriangle(bytesOf(g.mesh.vertices) + bytesOf(g.mesh.triangles)), perTriangle(bytesOf(g.mesh.vertices)),
                 perTriangle(bytesOf(g.mesh.triangles)));
-  out << format("  triangle data:     %.1f B/triangle (corners %.1f, spheres %.1f, planes %.1f; in leaf order %.1f)\n",
-                perTriangle(bytesOf(g.corners) + bytesOf(g.spheres) + bytesOf(g.planes) + bytesOf(g.leaf_corners) +
+  out << format("  triangle data:     %.1f B/triangle (corners %.1f and their index %.1f, spheres %.1f, planes %.1f; "
+                "spheres and planes in leaf order %.1f)\n",
+                perTriangle(bytesOf(g.corners.in_leaf_order) + bytesOf(g.corners.leaf_position) + bytesOf(g.spheres) +
+                            bytesOf(g.planes) +
                             bytesOf(g.leaf_spheres) + bytesOf(g.leaf_planes)),
-                perTriangle(bytesOf(g.corners)), perTriangle(bytesOf(g.spheres)), perTriangle(bytesOf(g.planes)),
-                perTriangle(bytesOf(g.leaf_corners) + bytesOf(g.leaf_spheres) + bytesOf(g.leaf_planes)));
+                perTriangle(bytesOf(g.corners.in_leaf_order)), perTriangle(bytesOf(g.corners.leaf_position)),
+                perTriangle(bytesOf(g.spheres)), perTriangle(bytesOf(g.planes)),
+                perTriangle(bytesOf(g.leaf_spheres) + bytesOf(g.leaf_planes)));
   out << format("  Bvh:               %.1f B/triangle (%zu nodes of %zu B, triangle ids %.1f)\n",
                 perTriangle(bytesOf(g.bvh.nodes) + bytesOf(g.bvh.triangle_ids)), g.bvh.nodes.size(), sizeof(BvhNode),
                 perTriangle(bytesOf(g.bvh.triangle_ids)));

@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -57,11 +58,21 @@ struct RegionTree {
   /// Per leaf. leaf_list: index of its CFL (lists are shared between leaves whose ids, entry bounds and
   /// depth agree), or kNoList. leaf_lower_bound: a lower bound on the distance from any point of the leaf to the mesh
   /// (0 where the mesh passes through it). leaf_corner_distance: the distance from each of its eight
-  /// corners to the mesh, corner c at min_corner + size (c & 1, (c >> 1) & 1, c >> 2), rounded down to float:
-  /// distance to a set is 1-Lipschitz, so dist(p, mesh) >= corner distance - |p - corner| for every p.
+  /// corners to the mesh, corner c at min_corner + size (c & 1, (c >> 1) & 1, c >> 2), in units of
+  /// cornerDistanceUnit(size), rounded down, saturated at kCornerDistanceSaturated: read it through
+  /// cornerDistanceLower and cornerDistanceUpper. Distance to a set is 1-Lipschitz, so dist(p, mesh) >=
+  /// corner distance - |p - corner| for every p. Sixteen bits per corner instead of a float: with a unit of
+  /// a small fraction of the leaf's edge they lose nothing that matters to a bound, and they were the
+  /// largest per-leaf array.
   std::vector<std::uint32_t> leaf_list;
   std::vector<float> leaf_lower_bound;
-  std::vector<std::array<float, 8>> leaf_corner_distance;
+  std::vector<std::array<std::uint16_t, 8>> leaf_corner_distance;
+  /// The unit of leaf_corner_distance as a fraction of a leaf's edge: a power of two in
+  /// [kFinestCornerDistanceUnit, 1], the finest that keeps the farthest corner (in edges of its leaf)
+  /// below saturation, so that multiplying by it is exact.
+  double corner_distance_unit = kFinestCornerDistanceUnit;
+  static constexpr std::uint16_t kCornerDistanceSaturated = 0xffff;
+  static constexpr double kFinestCornerDistanceUnit = 1.0 / 65536;
 
   /// CSR storage of the lists: list l is entries [list_offsets[l], list_offsets[l + 1]), bounds in
   /// list_entry_bounds at those indices. Within a list, entries are sorted by (list_entry_bounds, triangle
@@ -87,6 +98,26 @@ struct RegionTree {
   double cellSize(int depth) const { return root_size / double(std::int64_t(1) << depth); }
   /// The unit of list_entry_bounds at a depth: 1/32 of the cell edge, so bounds up to 8 edges are kept.
   double entryBoundUnit(int depth) const { return cellSize(depth) / 32; }
+  /// The unit of the corner distances of a leaf of edge `size` (cellSize of its depth).
+  double cornerDistanceUnit(double size) const { return size * corner_distance_unit; }
+  /// A stored corner distance as a lower bound on the corner's distance to the mesh (`unit`:
+  /// cornerDistanceUnit of its leaf).
+  static double cornerDistanceLower(std::uint16_t stored, double unit) { return double(stored) * unit; }
+  /// A stored corner distance as an upper bound on the corner's distance to the mesh, up to the float
+  /// rounding of the build's distances (inflate it by a relative 1e-6 before relying on it); infinite when
+  /// saturated.
+  static double cornerDistanceUpper(std::uint16_t stored, double unit) {
+    return stored == kCornerDistanceSaturated ? std::numeric_limits<double>::infinity() : double(stored + 1) * unit;
+  }
+  /// The stored form of a corner distance `distance` (>= 0; NaN stores 0): the most units whose
+  /// cornerDistanceLower does not exceed it, saturated.
+  static std::uint16_t encodeCornerDistance(double distance, double unit) {
+    if (!(distance >= 0)) return 0;
+    const double units = distance / unit;
+    double stored = units < double(kCornerDistanceSaturated) ? std::floor(units) : double(kCornerDistanceSaturated);
+    while (stored > 0 && stored * unit > distance) stored -= 1;  // the division may have rounded up
+    return static_cast<std::uint16_t>(stored);
+  }
   /// The box of the root grid.
   Aabb bounds() const {
     Aabb box;

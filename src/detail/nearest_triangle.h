@@ -88,7 +88,7 @@ inline void nearestTriangleCompact(const MeshModel& model, const Eigen::Vector3d
     const CompactBvhNode& node = nodes[pending.node];
     if (node.count > 0) {
       for (int i = node.first; i < node.first + node.count; ++i) {
-        const auto& c = model.leaf_corners[i];
+        const auto& c = model.corners.in_leaf_order[i];
         Eigen::Vector3d q;
         const double d = pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q);
         if (d < best_squared) {
@@ -249,7 +249,7 @@ inline void nearestTriangleCompactBounded(const MeshModel& model, const Eigen::V
         const double height = std::abs(plane.head<3>().dot(p) - plane[3]) -
                               1e-13 * (scale + std::abs(plane[3]) + sphere[3]);
         if (height * kShrink >= best) continue;
-        if (tests.add(p, model.leaf_corners[i], model.bvh.triangle_ids[i], best_squared, best_triangle, closest)) {
+        if (tests.add(p, model.corners.in_leaf_order[i], model.bvh.triangle_ids[i], best_squared, best_triangle, closest)) {
           best = std::sqrt(best_squared);
         }
       }

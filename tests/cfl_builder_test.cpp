@@ -287,6 +287,19 @@ TEST(CflBuilder, ListsAreConservativeOnTheBunnyAndWithOtherPaddings) {
   }
 }
 
+// A thin plate whose triangles are wider than it is thick: the leaves near it straddle the plate or see
+// both faces, and the rules that stop refinement there (list lengths against cell sizes in edges) are the
+// ones that must still leave every list complete, with and without topology culling.
+TEST(CflBuilder, ListsAreConservativeOnAThinPlate) {
+  const TriangleMesh plate = test::makeThinPlate(1.0, 0.05, 12);
+  for (bool culling : {false, true}) {
+    const std::string label = std::string("thin plate") + (culling ? " with topology culling" : "");
+    const CflModel model = buildCflModel(plate, options(0, culling));
+    EXPECT_GT(model.regions.max_depth, 0) << label;
+    EXPECT_EQ(checkConservative(model, plate, 2000, culling ? 52 : 51, label), 0) << label;
+  }
+}
+
 // A far leaf may decide it stores no list before its list is complete, and then keeps a lower bound from
 // its center's distance instead of its listed triangles': every such leaf, not just the sampled ones, must
 // keep it below the distance of each of its corners and of its center.

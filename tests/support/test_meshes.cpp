@@ -187,6 +187,37 @@ TriangleMesh makeMessyMesh(int major_segments, int minor_segments) {
   return mesh;
 }
 
+TriangleMesh makeThinPlate(double size, double thickness, int n) {
+  TriangleMesh mesh;
+  for (int face = 0; face < 2; ++face) {  // bottom, then top
+    for (int j = 0; j <= n; ++j) {
+      for (int i = 0; i <= n; ++i) {
+        mesh.vertices.push_back(
+            Eigen::Vector3d(-size + 2 * size * i / n, -size + 2 * size * j / n, (face - 0.5) * thickness));
+      }
+    }
+  }
+  const int top = (n + 1) * (n + 1);
+  auto index = [&](int i, int j) { return i + (n + 1) * j; };
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      addQuad(mesh, top + index(i, j), top + index(i + 1, j), top + index(i + 1, j + 1), top + index(i, j + 1));
+      addQuad(mesh, index(i, j), index(i, j + 1), index(i + 1, j + 1), index(i + 1, j));
+    }
+  }
+  // The rim, counterclockwise seen from above, so that each strip faces out.
+  std::vector<int> rim;
+  for (int i = 0; i < n; ++i) rim.push_back(index(i, 0));
+  for (int j = 0; j < n; ++j) rim.push_back(index(n, j));
+  for (int i = n; i > 0; --i) rim.push_back(index(i, n));
+  for (int j = n; j > 0; --j) rim.push_back(index(0, j));
+  for (std::size_t k = 0; k < rim.size(); ++k) {
+    const int p = rim[k], q = rim[(k + 1) % rim.size()];
+    addQuad(mesh, p, q, top + q, top + p);
+  }
+  return mesh;
+}
+
 TriangleMesh makeBox(const Eigen::Vector3d& min, const Eigen::Vector3d& max) {
   TriangleMesh mesh;
   for (int k = 0; k < 8; ++k) {

@@ -60,6 +60,10 @@ TriangleMesh makeMessyMesh(int major_segments = 16, int minor_segments = 8);
 /// `major_segments` x `minor_segments` quads.
 TriangleMesh makeSelfIntersectingMesh(int major_segments = 16, int minor_segments = 8);
 
+/// A closed thin plate [-size, size]^2 x [-thickness / 2, thickness / 2]: each face an n x n grid of quads,
+/// two triangles each, welded to the other by a strip of quads around the rim (4 n (n + 2) triangles).
+TriangleMesh makeThinPlate(double size = 1.0, double thickness = 0.05, int n = 12);
+
 /// A closed axis-aligned box, 12 triangles.
 TriangleMesh makeBox(const Eigen::Vector3d& min, const Eigen::Vector3d& max);
 

@@ -186,6 +186,26 @@ void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, do
   }
 }
 
+// regions.locate(p_M), through the cell the cache's last point was in when p_M lies inside that cell by more
+// than a margin: locate's fixed point and the cell's corner round at about 1e-16 of the coordinates' scale
+// (the grid's extent plus its offset from the origin), so such a point descends to that very cell, and
+// consecutive points of a batch mostly do. Points nearer a face take the descent.
+RegionCell locateNear(const RegionTree& regions, const Eigen::Vector3d& p_M, detail::PointListCache* cache) {
+  if (cache == nullptr) return regions.locate(p_M);
+  if (cache->located) {
+    const RegionCell& cell = cache->cell;
+    const int widest = std::max({regions.root_dims[0], regions.root_dims[1], regions.root_dims[2]});
+    const double margin = 1e-12 * (regions.root_size * double(widest) + regions.origin.cwiseAbs().maxCoeff());
+    if (((p_M - cell.min_corner).array() > margin).all() &&
+        ((cell.min_corner.array() + cell.size) - p_M.array() > margin).all()) {
+      return cell;
+    }
+  }
+  cache->cell = regions.locate(p_M);
+  cache->located = true;
+  return cache->cell;
+}
+
 // The closest triangle to p_M strictly within sqrt(best_squared) (the entry value), through the point's leaf
 // when it lies in the regions and has a list, else through the Bvh. best_triangle stays -1 when there is none.
 // `hint_triangle`: a triangle likely to be nearly as close as the closest (a nearby point's), or -1.
@@ -197,7 +217,7 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
   const bool inside = !regions.nodes.empty() && (p_M.array() >= box.min.array()).all() &&
                       (p_M.array() <= box.max.array()).all();
   if (inside) {
-    const RegionCell cell = regions.locate(p_M);
+    const RegionCell cell = locateNear(regions, p_M, cache);
     if (regions.hasList(cell.leaf)) {
       // No point of the leaf is closer to the mesh than its lower bound.
       const double leaf_bound = double(regions.leaf_lower_bound[cell.leaf]) * kBoundShrink;

@@ -2,6 +2,7 @@
 // Internal: closest triangle of a MeshModel to a point, through its Bvh.
 
 #include "cfl/mesh_model.h"
+#include "cfl/region_tree.h"
 #include "cfl/triangle_distance.h"
 
 #include <algorithm>
@@ -197,6 +198,10 @@ struct PointListCache {
   std::uint32_t filled = 0;
   std::vector<double> lanes;
   std::vector<std::int32_t> ids;  // padded as the lanes, with the last entry's id
+  /// The region cell of the last point located through this cache, when `located`: the next point, likely in
+  /// it too, may skip the tree's descent (see the point query's locateNear).
+  RegionCell cell;
+  bool located = false;
 };
 
 /// nearestTriangleCompact with each triangle of a leaf first bounded by its own sphere and plane

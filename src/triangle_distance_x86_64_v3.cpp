@@ -180,6 +180,32 @@ struct PointBoundLanes {
     const __m256d near_plane = _mm256_cmp_pd(_mm256_mul_pd(height, shrink), _mm256_set1_pd(best), _CMP_NGE_UQ);
     return _mm256_movemask_pd(_mm256_and_pd(near_sphere, near_plane));
   }
+
+  // The lanes of a cached block (PointListCache) whose prism bound lets them through at `best_squared`: the
+  // distance to a triangle is at least sqrt(h^2 + l^2), h the height over its plane and l how far p lies
+  // beyond the farthest of its edges' lines within the plane (the triangle lies behind each; the two are
+  // orthogonal). Tighter than the plane alone for the triangles around the closest one, which pass the
+  // sphere and the plane when the closest point lies near their common edge or corner. Each of h and l is
+  // reduced by the plane bound's slack first (its part that depends on the triangle is in the block); a
+  // sliver's zero edge normals leave l at 0, the plane bound. Only a bound: fused products are fine here.
+  int passingPrism(const double* block, double best_squared) const {
+    const __m256d zero = _mm256_setzero_pd();
+    const __m256d point_slack = _mm256_mul_pd(slack_unit, slack_scale);
+    const auto plane = [&](const double* lanes) {
+      return _mm256_fmadd_pd(_mm256_loadu_pd(lanes), p.x,
+                             _mm256_fmadd_pd(_mm256_loadu_pd(lanes + 4), p.y,
+                                             _mm256_fmsub_pd(_mm256_loadu_pd(lanes + 8), p.z, _mm256_loadu_pd(lanes + 12))));
+    };
+    const __m256d h = _mm256_max_pd(
+        _mm256_sub_pd(_mm256_sub_pd(_mm256_andnot_pd(sign_bit, plane(block + 20)), _mm256_loadu_pd(block + 84)),
+                      point_slack),
+        zero);
+    const __m256d beyond = _mm256_max_pd(_mm256_max_pd(plane(block + 36), plane(block + 52)), plane(block + 68));
+    const __m256d l = _mm256_max_pd(_mm256_sub_pd(beyond, point_slack), zero);
+    const __m256d bound_squared = _mm256_fmadd_pd(h, h, _mm256_mul_pd(l, l));
+    return _mm256_movemask_pd(
+        _mm256_cmp_pd(_mm256_mul_pd(bound_squared, shrink), _mm256_set1_pd(best_squared), _CMP_NGE_UQ));
+  }
 };
 
 // Four spheres or planes (x, y, z, w each) as lanes: x, y, z and w of the four.
@@ -268,6 +294,29 @@ void fillBlock(PointListCache& cache, const MeshModel& geometry, std::uint32_t b
   _mm256_storeu_pd(block + 24, normal.y);
   _mm256_storeu_pd(block + 28, normal.z);
   _mm256_storeu_pd(block + 32, offset);
+  // The edges' outward normals within the plane of ab x ac, zero for a sliver (kFastSin2, as the kernels):
+  // there that normal is too inaccurate for the prism bound's orthogonality.
+  const auto& corners = geometry.corners;
+  for (std::uint32_t k = 0; k < 4; ++k) {
+    const auto& c = corners[ids[k]];
+    const Vec ab = c[1] - c[0], ac = c[2] - c[0];
+    const Vec n = ab.cross(ac);
+    const bool shaped = n.squaredNorm() > kFastSin2 * ab.squaredNorm() * ac.squaredNorm();
+    for (int e = 0; e < 3; ++e) {
+      const Vec& from = c[e];
+      Vec m = (c[(e + 1) % 3] - from).cross(n);
+      const double length = m.norm();
+      m = shaped && length > 0 ? Vec(m / length) : Vec::Zero();
+      double* edge = block + 36 + 16 * e;
+      const double offset = m.dot(from);
+      edge[k] = m.x();
+      edge[4 + k] = m.y();
+      edge[8 + k] = m.z();
+      // With the slack's part that depends on the triangle (see PointBoundLanes::passing).
+      edge[12 + k] = offset + 1e-13 * (block[16 + k] + std::abs(offset));
+    }
+    block[84 + k] = 1e-13 * (block[16 + k] + std::abs(block[32 + k]));
+  }
 }
 
 }  // namespace
@@ -292,6 +341,7 @@ void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& ge
       const Lanes3 normal{_mm256_loadu_pd(block + 20), _mm256_loadu_pd(block + 24), _mm256_loadu_pd(block + 28)};
       int pass = lanes.passing(center, _mm256_loadu_pd(block + 16), normal, _mm256_loadu_pd(block + 32), best) &
                  ((1 << count) - 1);
+      if (pass != 0) pass &= lanes.passingPrism(block, best_squared);
       while (pass != 0) {
         const int k = __builtin_ctz(unsigned(pass));
         pass &= pass - 1;

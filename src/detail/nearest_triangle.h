@@ -188,10 +188,13 @@ struct PointListScan {
 /// order) mostly fall in the leaf of the point before, and their scans then read the entries' bounds, spheres
 /// and planes as contiguous lanes instead of gathering them by triangle id. Blocks of four entries, each
 /// kBlock doubles: the squared entry bounds, then the spheres' x, y, z and radius, then the planes' x, y, z
-/// and offset, four lanes each. The last block is padded with infinite bounds, which end every scan. Blocks
-/// are laid out as scans first reach them (`filled` so far): most scans end well before the list does.
+/// and offset, then for each edge of the triangle (ab, bc, ca) its outward normal in the triangle's plane
+/// (unit; zero for a sliver) x, y, z and offset (plus rounding slack), then the plane's rounding slack, four
+/// lanes each. The last block is padded with infinite
+/// bounds, which end every scan. Blocks are laid out as scans first reach them (`filled` so far): most scans
+/// end well before the list does.
 struct PointListCache {
-  static constexpr int kBlock = 36;
+  static constexpr int kBlock = 88;
   static constexpr std::uint32_t kNoLeaf = 0xffffffffu;
   std::uint32_t leaf = kNoLeaf;
   PointListScan source{};

@@ -65,10 +65,8 @@ inline __m256d pointSegment4(const Lanes3& p, const Lanes3& a, const Lanes3& e, 
   return dot(offset, offset);
 }
 
-}  // namespace
-
-void pointTriangleSquaredDistances4(const Vec& p, const std::array<Vec, 3>* const triangles[4], double squared[4],
-                                    Vec closest[4]) {
+// The corners a, b, c of four triangles as lanes.
+inline void loadTriangles(const std::array<Vec, 3>* const triangles[4], Lanes3& a, Lanes3& b, Lanes3& c) {
   // Each triangle is nine doubles in a row: (a, b.x) and (b.y, b.z, c.x, c.y) transposed by fours, c.z apart.
   __m256d r0 = _mm256_loadu_pd(triangles[0]->data()->data());
   __m256d r1 = _mm256_loadu_pd(triangles[1]->data()->data());
@@ -82,7 +80,17 @@ void pointTriangleSquaredDistances4(const Vec& p, const std::array<Vec, 3>* cons
   transpose(u0, u1, u2, u3);
   const __m256d cz = _mm256_set_pd((*triangles[3])[2].z(), (*triangles[2])[2].z(), (*triangles[1])[2].z(),
                                    (*triangles[0])[2].z());
-  const Lanes3 a{r0, r1, r2}, b{r3, u0, u1}, c{u2, u3, cz};
+  a = {r0, r1, r2};
+  b = {r3, u0, u1};
+  c = {u2, u3, cz};
+}
+
+}  // namespace
+
+void pointTriangleSquaredDistances4(const Vec& p, const std::array<Vec, 3>* const triangles[4], double squared[4],
+                                    Vec closest[4]) {
+  Lanes3 a, b, c;
+  loadTriangles(triangles, a, b, c);
   const Lanes3 q{_mm256_set1_pd(p.x()), _mm256_set1_pd(p.y()), _mm256_set1_pd(p.z())};
 
   const Lanes3 ab = sub(b, a), ac = sub(c, a);
@@ -294,29 +302,46 @@ void fillBlock(PointListCache& cache, const MeshModel& geometry, std::uint32_t b
   _mm256_storeu_pd(block + 24, normal.y);
   _mm256_storeu_pd(block + 28, normal.z);
   _mm256_storeu_pd(block + 32, offset);
-  // The edges' outward normals within the plane of ab x ac, zero for a sliver (kFastSin2, as the kernels):
-  // there that normal is too inaccurate for the prism bound's orthogonality.
+  // The prism bound's lanes wait until a scan needs them (fillEdges): a NaN marks them missing.
+  block[84] = std::numeric_limits<double>::quiet_NaN();
+}
+
+// Lays out the prism bound's lanes of a cached block (PointListCache, PointBoundLanes::passingPrism): the
+// edges' outward normals within the plane of ab x ac, zero for a sliver (kFastSin2, as the kernels), where
+// that normal is too inaccurate for the bound's orthogonality; each offset, and the plane's, with the
+// slack's part that depends on the triangle (see PointBoundLanes::passing).
+void fillEdges(double* block, const std::int32_t* ids, const MeshModel& geometry) {
   const auto& corners = geometry.corners;
-  for (std::uint32_t k = 0; k < 4; ++k) {
-    const auto& c = corners[ids[k]];
-    const Vec ab = c[1] - c[0], ac = c[2] - c[0];
-    const Vec n = ab.cross(ac);
-    const bool shaped = n.squaredNorm() > kFastSin2 * ab.squaredNorm() * ac.squaredNorm();
-    for (int e = 0; e < 3; ++e) {
-      const Vec& from = c[e];
-      Vec m = (c[(e + 1) % 3] - from).cross(n);
-      const double length = m.norm();
-      m = shaped && length > 0 ? Vec(m / length) : Vec::Zero();
-      double* edge = block + 36 + 16 * e;
-      const double offset = m.dot(from);
-      edge[k] = m.x();
-      edge[4 + k] = m.y();
-      edge[8 + k] = m.z();
-      // With the slack's part that depends on the triangle (see PointBoundLanes::passing).
-      edge[12 + k] = offset + 1e-13 * (block[16 + k] + std::abs(offset));
-    }
-    block[84 + k] = 1e-13 * (block[16 + k] + std::abs(block[32 + k]));
+  const std::array<Vec, 3>* const triangles[4] = {&corners[ids[0]], &corners[ids[1]], &corners[ids[2]],
+                                                  &corners[ids[3]]};
+  Lanes3 a, b, c;
+  loadTriangles(triangles, a, b, c);
+  const Lanes3 ab = sub(b, a), ac = sub(c, a);
+  const Lanes3 n = cross(ab, ac);
+  const __m256d shaped =
+      _mm256_cmp_pd(dot(n, n), _mm256_mul_pd(_mm256_mul_pd(_mm256_set1_pd(kFastSin2), dot(ab, ab)), dot(ac, ac)),
+                    _CMP_GT_OQ);
+  const __m256d radius = _mm256_loadu_pd(block + 16);
+  const __m256d unit = _mm256_set1_pd(1e-13);
+  const __m256d sign_bit = _mm256_set1_pd(-0.0);
+  const Lanes3 from[3] = {a, b, c};
+  const Lanes3 along[3] = {ab, sub(c, b), sub(a, c)};
+  for (int e = 0; e < 3; ++e) {
+    const Lanes3 m = cross(along[e], n);
+    const __m256d length = _mm256_sqrt_pd(dot(m, m));
+    const __m256d usable = _mm256_and_pd(shaped, _mm256_cmp_pd(length, _mm256_setzero_pd(), _CMP_GT_OQ));
+    const Lanes3 unit_m{_mm256_and_pd(_mm256_div_pd(m.x, length), usable),
+                        _mm256_and_pd(_mm256_div_pd(m.y, length), usable),
+                        _mm256_and_pd(_mm256_div_pd(m.z, length), usable)};
+    const __m256d offset = dot(unit_m, from[e]);
+    double* edge = block + 36 + 16 * e;
+    _mm256_storeu_pd(edge, unit_m.x);
+    _mm256_storeu_pd(edge + 4, unit_m.y);
+    _mm256_storeu_pd(edge + 8, unit_m.z);
+    _mm256_storeu_pd(edge + 12, _mm256_add_pd(offset, _mm256_mul_pd(unit, _mm256_add_pd(radius, _mm256_andnot_pd(sign_bit, offset)))));
   }
+  _mm256_storeu_pd(block + 84,
+                   _mm256_mul_pd(unit, _mm256_add_pd(radius, _mm256_andnot_pd(sign_bit, _mm256_loadu_pd(block + 32)))));
 }
 
 }  // namespace
@@ -331,7 +356,7 @@ void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& ge
   const std::uint32_t blocks = (list.source.length + 3) / 4;
   for (std::uint32_t b = 0; b < blocks; ++b) {
     if (b == list.filled) fillBlock(list, geometry, list.filled++);
-    const double* block = list.lanes.data() + std::size_t(b) * PointListCache::kBlock;
+    double* block = list.lanes.data() + std::size_t(b) * PointListCache::kBlock;
     const std::int32_t* ids = list.ids.data() + 4 * std::size_t(b);
     // The block's entries before the first whose bound reaches the best (as scanPointList).
     const int stop = _mm256_movemask_pd(_mm256_cmp_pd(_mm256_loadu_pd(block), _mm256_set1_pd(best_squared), _CMP_GE_OQ));
@@ -341,7 +366,10 @@ void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& ge
       const Lanes3 normal{_mm256_loadu_pd(block + 20), _mm256_loadu_pd(block + 24), _mm256_loadu_pd(block + 28)};
       int pass = lanes.passing(center, _mm256_loadu_pd(block + 16), normal, _mm256_loadu_pd(block + 32), best) &
                  ((1 << count) - 1);
-      if (pass != 0) pass &= lanes.passingPrism(block, best_squared);
+      if (pass != 0) {
+        if (std::isnan(block[84])) fillEdges(block, ids, geometry);
+        pass &= lanes.passingPrism(block, best_squared);
+      }
       while (pass != 0) {
         const int k = __builtin_ctz(unsigned(pass));
         pass &= pass - 1;

@@ -226,6 +226,18 @@ inline void loadLanes(const Eigen::Vector4d& a, const Eigen::Vector4d& b, const 
   transpose(xyz.x, xyz.y, xyz.z, w);
 }
 
+// Adds to `tests` the triangles of the lanes set in `pass`, lowest first (lane k: corners corner(k), id
+// id(k)), keeping `best` the square root of best_squared as it improves.
+template <class Corner, class Id>
+inline void addPassing(int pass, const Vec& p, const Corner& corner, const Id& id, PendingTriangleTests& tests,
+                       double& best_squared, int& best_triangle, Vec* closest, double& best) {
+  while (pass != 0) {
+    const int k = __builtin_ctz(unsigned(pass));
+    pass &= pass - 1;
+    if (tests.add(p, corner(k), id(k), best_squared, best_triangle, closest)) best = std::sqrt(best_squared);
+  }
+}
+
 }  // namespace
 
 void scanPointList(const Vec& p, const PointListScan& list, const MeshModel& geometry, double& best_squared,
@@ -259,12 +271,9 @@ void scanPointList(const Vec& p, const PointListScan& list, const MeshModel& geo
       __m256d radius, offset;
       loadLanes(spheres[ids[0]], spheres[ids[1]], spheres[ids[2]], spheres[ids[3]], center, radius);
       loadLanes(planes[ids[0]], planes[ids[1]], planes[ids[2]], planes[ids[3]], normal, offset);
-      int pass = lanes.passing(center, radius, normal, offset, best) & ((1 << count) - 1);
-      while (pass != 0) {
-        const int k = __builtin_ctz(unsigned(pass));
-        pass &= pass - 1;
-        if (tests.add(p, corners[ids[k]], ids[k], best_squared, best_triangle, &closest)) best = std::sqrt(best_squared);
-      }
+      const int pass = lanes.passing(center, radius, normal, offset, best) & ((1 << count) - 1);
+      addPassing(pass, p, [&](int k) -> const auto& { return corners[ids[k]]; }, [&](int k) { return ids[k]; }, tests,
+                 best_squared, best_triangle, &closest, best);
     }
     if (stop) break;
   }
@@ -370,11 +379,8 @@ void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& ge
         if (std::isnan(block[84])) fillEdges(block, ids, geometry);
         pass &= lanes.passingPrism(block, best_squared);
       }
-      while (pass != 0) {
-        const int k = __builtin_ctz(unsigned(pass));
-        pass &= pass - 1;
-        if (tests.add(p, corners[ids[k]], ids[k], best_squared, best_triangle, &closest)) best = std::sqrt(best_squared);
-      }
+      addPassing(pass, p, [&](int k) -> const auto& { return corners[ids[k]]; }, [&](int k) { return ids[k]; }, tests,
+                 best_squared, best_triangle, &closest, best);
     }
     if (stop) break;
   }
@@ -428,15 +434,10 @@ void nearestTriangleBounded(const MeshModel& model, const Vec& p, double& best_s
         __m256d radius, offset;
         loadLanes(spheres[i], spheres[j1], spheres[j2], spheres[j3], center, radius);
         loadLanes(planes[i], planes[j1], planes[j2], planes[j3], normal, offset);
-        int pass = lanes.passing(center, radius, normal, offset, best) & ((1 << count) - 1);
-        while (pass != 0) {
-          const int k = __builtin_ctz(unsigned(pass));
-          pass &= pass - 1;
-          if (tests.add(p, model.leaf_corners[i + k], model.bvh.triangle_ids[i + k], best_squared, best_triangle,
-                        closest)) {
-            best = std::sqrt(best_squared);
-          }
-        }
+        const int pass = lanes.passing(center, radius, normal, offset, best) & ((1 << count) - 1);
+        addPassing(pass, p, [&](int k) -> const auto& { return model.leaf_corners[i + k]; },
+                   [&](int k) { return model.bvh.triangle_ids[i + k]; }, tests, best_squared, best_triangle, closest,
+                   best);
       }
       // The batch runs before the walk goes on: the nodes' bounds compare with the best.
       if (tests.run(p, best_squared, best_triangle, closest)) best = std::sqrt(best_squared);

@@ -445,13 +445,14 @@ void validatePoint(const Eigen::Vector3d& p_W, const char* what) {
   }
 }
 
-// The query proper, once pose, point and options are known to be good. `hint_squared`: see
-// searchNearestFrom.
-PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p_W,
+// The query proper, once pose, point and options are known to be good. X_MW: X_WM.inverse(Eigen::Isometry),
+// computed once per batch. `hint_squared`: see searchNearestFrom.
+PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Isometry3d& X_MW,
+                            const Eigen::Vector3d& p_W,
                             const PointQueryOptions& options, detail::PointTriangles4 four,
                             detail::PointListCache* cache = nullptr,
                             double hint_squared = std::numeric_limits<double>::infinity(), int hint_triangle = -1) {
-  const Eigen::Vector3d p_M = X_WM.inverse(Eigen::Isometry) * p_W;
+  const Eigen::Vector3d p_M = X_MW * p_W;
   const double infinity = std::numeric_limits<double>::infinity();
   double best_squared = std::isinf(options.upper_bound) ? infinity : options.upper_bound * options.upper_bound;
   int triangle = -1;
@@ -520,7 +521,7 @@ PointDistance computePointDistance(const CflModel& model, const Eigen::Isometry3
   validatePose(X_WM, "X_WM");
   validatePoint(p_W, "p_W");
   validateOptions(model, options);
-  return pointDistance(model, X_WM, p_W, options, fourTriangleKernel());
+  return pointDistance(model, X_WM, X_WM.inverse(Eigen::Isometry), p_W, options, fourTriangleKernel());
 }
 
 void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d* points_W,
@@ -539,6 +540,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   validateOptions(model, options);
   const int threads = batchThreadCount(options.threads, count);
   const detail::PointTriangles4 four = fourTriangleKernel();
+  const Eigen::Isometry3d X_MW = X_WM.inverse(Eigen::Isometry);
   // detail::parallelChunks, as computeDistances: each task writes only its own outputs, so they do not depend
   // on the schedule.
   auto inParallel = [&](std::size_t chunk, auto&& body) { detail::parallelChunks(count, threads, chunk, body); };
@@ -569,7 +571,8 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
         }
         const std::size_t i = ordered[j];
         const double hint = previous + (points_W[i] - previous_W).norm();
-        results[i] = pointDistance(model, X_WM, points_W[i], options, four, &cache, hint * hint, previous_triangle);
+        results[i] =
+            pointDistance(model, X_WM, X_MW, points_W[i], options, four, &cache, hint * hint, previous_triangle);
         previous = std::abs(results[i].distance);
         previous_W = points_W[i];
         previous_triangle = results[i].triangle;
@@ -581,7 +584,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
     prefetcher.start(std::ptrdiff_t(begin), std::ptrdiff_t(end));
     for (std::size_t i = begin; i != end; ++i) {
       prefetcher.advance(std::ptrdiff_t(i), std::ptrdiff_t(end));
-      results[i] = pointDistance(model, X_WM, points_W[i], options, four);
+      results[i] = pointDistance(model, X_WM, X_MW, points_W[i], options, four);
     }
   };
   inParallel(std::clamp<std::size_t>(count / (8 * std::size_t(threads)), 1, 256), queryRange);

@@ -1,13 +1,15 @@
 // Point queries, CFL against Open3D's RaycastingScene (Embree inside), the same points in one run:
 //
-//   cfl_point_bench [--points N] [--repeats R] [--mesh FILE ...]
+//   cfl_point_bench [--points N] [--repeats R] [--threads T] [--mesh FILE ...]
 //
 // For each mesh (default: data/bunny.obj, torus_knot.obj, rock.obj, wuson.obj) and two point sets of N points
 // (default 1,000,000): "near", a random surface point moved by up to 5% of the bounding-box diagonal in a
 // random direction, and "box", uniform in the bounding box grown to twice its size about its center.
 // Unsigned: cfl::computePointDistances against RaycastingScene::ComputeDistance. Signed, on meshes cfl finds
 // closed: against ComputeSignedDistance (Open3D signs by ray-crossing parity). Both run on every hardware
-// thread; times are wall-clock medians over the repeats, the two interleaved. Open3D works in float: the points
+// thread, or on --threads T each (Open3D's nthreads, cfl's PointQueryOptions::threads); times are wall-clock
+// medians over the repeats, the two interleaved, and beside them the process CPU time of the same calls (all
+// threads summed), whose ratio holds when other programs share the cores and the wall clock does not. Open3D works in float: the points
 // are floats, given to both exactly, and answers must agree to 1e-6 of the diagonal, signs wherever
 // |distance| exceeds that. Exit 1 when they do not.
 //
@@ -31,6 +33,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <random>
 #include <string>
 #include <vector>
@@ -42,6 +45,13 @@
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// CPU time of the whole process (every thread), seconds.
+double processCpu() {
+  timespec t;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
 namespace o3c = open3d::core;
 namespace o3g = open3d::t::geometry;
 
@@ -103,6 +113,7 @@ void finish(PointSet& set) {
 struct Args {
   std::size_t points = 1000000;
   int repeats = 3;
+  int threads = 0;  // 0: every hardware thread
   std::vector<std::string> meshes;
 };
 
@@ -116,9 +127,10 @@ Args parse(int argc, char** argv) {
     };
     if (a == "--points") args.points = std::stoul(value());
     else if (a == "--repeats") args.repeats = std::max(1, std::stoi(value()));
+    else if (a == "--threads") args.threads = std::max(0, std::stoi(value()));
     else if (a == "--mesh") args.meshes.push_back(value());
     else if (a == "--help") {
-      std::printf("usage: cfl_point_bench [--points N] [--repeats R] [--mesh FILE ...]\n");
+      std::printf("usage: cfl_point_bench [--points N] [--repeats R] [--threads T (0: all)] [--mesh FILE ...]\n");
       std::exit(0);
     } else {
       throw cfl::Error("unknown argument '" + a + "' (see --help)");
@@ -138,10 +150,12 @@ int main(int argc, char** argv) try {
   const Args args = parse(argc, argv);
   std::mt19937_64 rng(20261126);
   bool failed = false;
-  std::printf("CFL point queries against Open3D RaycastingScene, %zu points per set, median of %d, all threads\n",
-              args.points, args.repeats);
-  std::printf("%-16s %9s %-10s %-9s | %10s %10s %8s | %10s %10s | %9s %9s\n", "mesh", "tris", "points", "query",
-              "Open3D s", "CFL s", "speedup", "max|d|/diag", "sign diff", "O3D bld s", "CFL bld s");
+  const std::string threads = args.threads == 0 ? std::string("all threads") : std::to_string(args.threads) + " thread(s)";
+  std::printf("CFL point queries against Open3D RaycastingScene, %zu points per set, median of %d, %s\n",
+              args.points, args.repeats, threads.c_str());
+  std::printf("%-16s %9s %-10s %-9s | %10s %10s %8s | %10s %10s %8s | %10s %10s | %9s %9s\n", "mesh", "tris",
+              "points", "query", "Open3D s", "CFL s", "speedup", "O3D cpu s", "CFL cpu s", "cpu x", "max|d|/diag",
+              "sign diff", "O3D bld s", "CFL bld s");
   std::printf("(max|d|/diag: largest difference of |distance| from Open3D's; sign diff: points farther than 1e-6 of the\n"
               " diagonal from the surface whose sign differs from Open3D's, or from cfl's winding number where Open3D's\n"
               " rays hit nothing)\n");
@@ -202,16 +216,22 @@ int main(int argc, char** argv) try {
       for (int signed_query = 0; signed_query < (closed ? 2 : 1); ++signed_query) {
         cfl::PointQueryOptions options;
         options.signed_distance = signed_query == 1;
-        std::vector<double> o3d_times, cfl_times;
+        options.threads = args.threads;
+        std::vector<double> o3d_times, cfl_times, o3d_cpu, cfl_cpu;
         o3c::Tensor o3d_answer;
         for (int r = 0; r < args.repeats; ++r) {
+          double cpu = processCpu();
           start = Clock::now();
-          o3d_answer = signed_query ? scene.ComputeSignedDistance(query) : scene.ComputeDistance(query);
+          o3d_answer = signed_query ? scene.ComputeSignedDistance(query, args.threads)
+                                    : scene.ComputeDistance(query, args.threads);
           o3d_times.push_back(seconds(start));
+          o3d_cpu.push_back(processCpu() - cpu);
+          cpu = processCpu();
           start = Clock::now();
           cfl::computePointDistances(model, Eigen::Isometry3d::Identity(), set.points.data(), set.points.size(),
                                      results.data(), options);
           cfl_times.push_back(seconds(start));
+          cfl_cpu.push_back(processCpu() - cpu);
         }
         const float* o3d = o3d_answer.Contiguous().GetDataPtr<float>();
         double worst = 0;
@@ -233,9 +253,11 @@ int main(int argc, char** argv) try {
               ++sign_differences;
         }
         const double o3d_median = median(o3d_times), cfl_median = median(cfl_times);
-        std::printf("%-16s %9zu %-10s %-9s | %10.4f %10.4f %7.2fx | %10.2g %10zu | %9.3f %9.3f\n", name.c_str(),
-                    mesh.triangles.size(), set.name.c_str(), signed_query ? "signed" : "unsigned", o3d_median,
-                    cfl_median, o3d_median / cfl_median, worst, sign_differences, o3d_build, cfl_build);
+        const double o3d_cpu_median = median(o3d_cpu), cfl_cpu_median = median(cfl_cpu);
+        std::printf("%-16s %9zu %-10s %-9s | %10.4f %10.4f %7.2fx | %10.4f %10.4f %7.2fx | %10.2g %10zu | %9.3f %9.3f\n",
+                    name.c_str(), mesh.triangles.size(), set.name.c_str(), signed_query ? "signed" : "unsigned",
+                    o3d_median, cfl_median, o3d_median / cfl_median, o3d_cpu_median, cfl_cpu_median,
+                    o3d_cpu_median / cfl_cpu_median, worst, sign_differences, o3d_build, cfl_build);
         if (!(worst <= 1e-6) || sign_differences > 0) failed = true;
       }
     }

@@ -186,6 +186,26 @@ void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, do
   }
 }
 
+// regions.locate(p_M), through the cell the cache's last point was in when p_M lies inside that cell by more
+// than a margin: locate's fixed point and the cell's corner round at about 1e-16 of the coordinates' scale
+// (the grid's extent plus its offset from the origin), so such a point descends to that very cell, and
+// consecutive points of a batch mostly do. Points nearer a face take the descent.
+RegionCell locateNear(const RegionTree& regions, const Eigen::Vector3d& p_M, detail::PointListCache* cache) {
+  if (cache == nullptr) return regions.locate(p_M);
+  if (cache->located) {
+    const RegionCell& cell = cache->cell;
+    const int widest = std::max({regions.root_dims[0], regions.root_dims[1], regions.root_dims[2]});
+    const double margin = 1e-12 * (regions.root_size * double(widest) + regions.origin.cwiseAbs().maxCoeff());
+    if (((p_M - cell.min_corner).array() > margin).all() &&
+        ((cell.min_corner.array() + cell.size) - p_M.array() > margin).all()) {
+      return cell;
+    }
+  }
+  cache->cell = regions.locate(p_M);
+  cache->located = true;
+  return cache->cell;
+}
+
 // The closest triangle to p_M strictly within sqrt(best_squared) (the entry value), through the point's leaf
 // when it lies in the regions and has a list, else through the Bvh. best_triangle stays -1 when there is none.
 // `hint_triangle`: a triangle likely to be nearly as close as the closest (a nearby point's), or -1.
@@ -197,7 +217,7 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
   const bool inside = !regions.nodes.empty() && (p_M.array() >= box.min.array()).all() &&
                       (p_M.array() <= box.max.array()).all();
   if (inside) {
-    const RegionCell cell = regions.locate(p_M);
+    const RegionCell cell = locateNear(regions, p_M, cache);
     if (regions.hasList(cell.leaf)) {
       // No point of the leaf is closer to the mesh than its lower bound.
       const double leaf_bound = double(regions.leaf_lower_bound[cell.leaf]) * kBoundShrink;
@@ -427,13 +447,14 @@ void validatePoint(const Eigen::Vector3d& p_W, const char* what) {
   }
 }
 
-// The query proper, once pose, point and options are known to be good. `hint_squared`: see
-// searchNearestFrom.
-PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d& p_W,
+// The query proper, once pose, point and options are known to be good. X_MW: X_WM.inverse(Eigen::Isometry),
+// computed once per batch. `hint_squared`: see searchNearestFrom.
+PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Isometry3d& X_MW,
+                            const Eigen::Vector3d& p_W,
                             const PointQueryOptions& options, detail::PointTriangles4 four,
                             detail::PointListCache* cache = nullptr,
                             double hint_squared = std::numeric_limits<double>::infinity(), int hint_triangle = -1) {
-  const Eigen::Vector3d p_M = X_WM.inverse(Eigen::Isometry) * p_W;
+  const Eigen::Vector3d p_M = X_MW * p_W;
   const double infinity = std::numeric_limits<double>::infinity();
   double best_squared = std::isinf(options.upper_bound) ? infinity : options.upper_bound * options.upper_bound;
   int triangle = -1;
@@ -502,7 +523,7 @@ PointDistance computePointDistance(const CflModel& model, const Eigen::Isometry3
   validatePose(X_WM, "X_WM");
   validatePoint(p_W, "p_W");
   validateOptions(model, options);
-  return pointDistance(model, X_WM, p_W, options, fourTriangleKernel());
+  return pointDistance(model, X_WM, X_WM.inverse(Eigen::Isometry), p_W, options, fourTriangleKernel());
 }
 
 void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d* points_W,
@@ -521,6 +542,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   validateOptions(model, options);
   const int threads = batchThreadCount(options.threads, count);
   const detail::PointTriangles4 four = fourTriangleKernel();
+  const Eigen::Isometry3d X_MW = X_WM.inverse(Eigen::Isometry);
   // detail::parallelChunks, as computeDistances: each task writes only its own outputs, so they do not depend
   // on the schedule.
   auto inParallel = [&](std::size_t chunk, auto&& body) { detail::parallelChunks(count, threads, chunk, body); };
@@ -551,7 +573,8 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
         }
         const std::size_t i = ordered[j];
         const double hint = previous + (points_W[i] - previous_W).norm();
-        results[i] = pointDistance(model, X_WM, points_W[i], options, four, &cache, hint * hint, previous_triangle);
+        results[i] =
+            pointDistance(model, X_WM, X_MW, points_W[i], options, four, &cache, hint * hint, previous_triangle);
         previous = std::abs(results[i].distance);
         previous_W = points_W[i];
         previous_triangle = results[i].triangle;
@@ -563,7 +586,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
     prefetcher.start(std::ptrdiff_t(begin), std::ptrdiff_t(end));
     for (std::size_t i = begin; i != end; ++i) {
       prefetcher.advance(std::ptrdiff_t(i), std::ptrdiff_t(end));
-      results[i] = pointDistance(model, X_WM, points_W[i], options, four);
+      results[i] = pointDistance(model, X_WM, X_MW, points_W[i], options, four);
     }
   };
   inParallel(std::clamp<std::size_t>(count / (8 * std::size_t(threads)), 1, 256), queryRange);

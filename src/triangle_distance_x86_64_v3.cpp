@@ -65,10 +65,8 @@ inline __m256d pointSegment4(const Lanes3& p, const Lanes3& a, const Lanes3& e, 
   return dot(offset, offset);
 }
 
-}  // namespace
-
-void pointTriangleSquaredDistances4(const Vec& p, const std::array<Vec, 3>* const triangles[4], double squared[4],
-                                    Vec closest[4]) {
+// The corners a, b, c of four triangles as lanes.
+inline void loadTriangles(const std::array<Vec, 3>* const triangles[4], Lanes3& a, Lanes3& b, Lanes3& c) {
   // Each triangle is nine doubles in a row: (a, b.x) and (b.y, b.z, c.x, c.y) transposed by fours, c.z apart.
   __m256d r0 = _mm256_loadu_pd(triangles[0]->data()->data());
   __m256d r1 = _mm256_loadu_pd(triangles[1]->data()->data());
@@ -82,7 +80,17 @@ void pointTriangleSquaredDistances4(const Vec& p, const std::array<Vec, 3>* cons
   transpose(u0, u1, u2, u3);
   const __m256d cz = _mm256_set_pd((*triangles[3])[2].z(), (*triangles[2])[2].z(), (*triangles[1])[2].z(),
                                    (*triangles[0])[2].z());
-  const Lanes3 a{r0, r1, r2}, b{r3, u0, u1}, c{u2, u3, cz};
+  a = {r0, r1, r2};
+  b = {r3, u0, u1};
+  c = {u2, u3, cz};
+}
+
+}  // namespace
+
+void pointTriangleSquaredDistances4(const Vec& p, const std::array<Vec, 3>* const triangles[4], double squared[4],
+                                    Vec closest[4]) {
+  Lanes3 a, b, c;
+  loadTriangles(triangles, a, b, c);
   const Lanes3 q{_mm256_set1_pd(p.x()), _mm256_set1_pd(p.y()), _mm256_set1_pd(p.z())};
 
   const Lanes3 ab = sub(b, a), ac = sub(c, a);
@@ -180,6 +188,32 @@ struct PointBoundLanes {
     const __m256d near_plane = _mm256_cmp_pd(_mm256_mul_pd(height, shrink), _mm256_set1_pd(best), _CMP_NGE_UQ);
     return _mm256_movemask_pd(_mm256_and_pd(near_sphere, near_plane));
   }
+
+  // The lanes of a cached block (PointListCache) whose prism bound lets them through at `best_squared`: the
+  // distance to a triangle is at least sqrt(h^2 + l^2), h the height over its plane and l how far p lies
+  // beyond the farthest of its edges' lines within the plane (the triangle lies behind each; the two are
+  // orthogonal). Tighter than the plane alone for the triangles around the closest one, which pass the
+  // sphere and the plane when the closest point lies near their common edge or corner. Each of h and l is
+  // reduced by the plane bound's slack first (its part that depends on the triangle is in the block); a
+  // sliver's zero edge normals leave l at 0, the plane bound. Only a bound: fused products are fine here.
+  int passingPrism(const double* block, double best_squared) const {
+    const __m256d zero = _mm256_setzero_pd();
+    const __m256d point_slack = _mm256_mul_pd(slack_unit, slack_scale);
+    const auto plane = [&](const double* lanes) {
+      return _mm256_fmadd_pd(_mm256_loadu_pd(lanes), p.x,
+                             _mm256_fmadd_pd(_mm256_loadu_pd(lanes + 4), p.y,
+                                             _mm256_fmsub_pd(_mm256_loadu_pd(lanes + 8), p.z, _mm256_loadu_pd(lanes + 12))));
+    };
+    const __m256d h = _mm256_max_pd(
+        _mm256_sub_pd(_mm256_sub_pd(_mm256_andnot_pd(sign_bit, plane(block + 20)), _mm256_loadu_pd(block + 84)),
+                      point_slack),
+        zero);
+    const __m256d beyond = _mm256_max_pd(_mm256_max_pd(plane(block + 36), plane(block + 52)), plane(block + 68));
+    const __m256d l = _mm256_max_pd(_mm256_sub_pd(beyond, point_slack), zero);
+    const __m256d bound_squared = _mm256_fmadd_pd(h, h, _mm256_mul_pd(l, l));
+    return _mm256_movemask_pd(
+        _mm256_cmp_pd(_mm256_mul_pd(bound_squared, shrink), _mm256_set1_pd(best_squared), _CMP_NGE_UQ));
+  }
 };
 
 // Four spheres or planes (x, y, z, w each) as lanes: x, y, z and w of the four.
@@ -190,6 +224,18 @@ inline void loadLanes(const Eigen::Vector4d& a, const Eigen::Vector4d& b, const 
   xyz.z = _mm256_loadu_pd(c.data());
   w = _mm256_loadu_pd(d.data());
   transpose(xyz.x, xyz.y, xyz.z, w);
+}
+
+// Adds to `tests` the triangles of the lanes set in `pass`, lowest first (lane k: corners corner(k), id
+// id(k)), keeping `best` the square root of best_squared as it improves.
+template <class Corner, class Id>
+inline void addPassing(int pass, const Vec& p, const Corner& corner, const Id& id, PendingTriangleTests& tests,
+                       double& best_squared, int& best_triangle, Vec* closest, double& best) {
+  while (pass != 0) {
+    const int k = __builtin_ctz(unsigned(pass));
+    pass &= pass - 1;
+    if (tests.add(p, corner(k), id(k), best_squared, best_triangle, closest)) best = std::sqrt(best_squared);
+  }
 }
 
 }  // namespace
@@ -225,12 +271,9 @@ void scanPointList(const Vec& p, const PointListScan& list, const MeshModel& geo
       __m256d radius, offset;
       loadLanes(spheres[ids[0]], spheres[ids[1]], spheres[ids[2]], spheres[ids[3]], center, radius);
       loadLanes(planes[ids[0]], planes[ids[1]], planes[ids[2]], planes[ids[3]], normal, offset);
-      int pass = lanes.passing(center, radius, normal, offset, best) & ((1 << count) - 1);
-      while (pass != 0) {
-        const int k = __builtin_ctz(unsigned(pass));
-        pass &= pass - 1;
-        if (tests.add(p, corners[ids[k]], ids[k], best_squared, best_triangle, &closest)) best = std::sqrt(best_squared);
-      }
+      const int pass = lanes.passing(center, radius, normal, offset, best) & ((1 << count) - 1);
+      addPassing(pass, p, [&](int k) -> const auto& { return corners[ids[k]]; }, [&](int k) { return ids[k]; }, tests,
+                 best_squared, best_triangle, &closest, best);
     }
     if (stop) break;
   }
@@ -268,6 +311,46 @@ void fillBlock(PointListCache& cache, const MeshModel& geometry, std::uint32_t b
   _mm256_storeu_pd(block + 24, normal.y);
   _mm256_storeu_pd(block + 28, normal.z);
   _mm256_storeu_pd(block + 32, offset);
+  // The prism bound's lanes wait until a scan needs them (fillEdges): a NaN marks them missing.
+  block[84] = std::numeric_limits<double>::quiet_NaN();
+}
+
+// Lays out the prism bound's lanes of a cached block (PointListCache, PointBoundLanes::passingPrism): the
+// edges' outward normals within the plane of ab x ac, zero for a sliver (kFastSin2, as the kernels), where
+// that normal is too inaccurate for the bound's orthogonality; each offset, and the plane's, with the
+// slack's part that depends on the triangle (see PointBoundLanes::passing).
+void fillEdges(double* block, const std::int32_t* ids, const MeshModel& geometry) {
+  const auto& corners = geometry.corners;
+  const std::array<Vec, 3>* const triangles[4] = {&corners[ids[0]], &corners[ids[1]], &corners[ids[2]],
+                                                  &corners[ids[3]]};
+  Lanes3 a, b, c;
+  loadTriangles(triangles, a, b, c);
+  const Lanes3 ab = sub(b, a), ac = sub(c, a);
+  const Lanes3 n = cross(ab, ac);
+  const __m256d shaped =
+      _mm256_cmp_pd(dot(n, n), _mm256_mul_pd(_mm256_mul_pd(_mm256_set1_pd(kFastSin2), dot(ab, ab)), dot(ac, ac)),
+                    _CMP_GT_OQ);
+  const __m256d radius = _mm256_loadu_pd(block + 16);
+  const __m256d unit = _mm256_set1_pd(1e-13);
+  const __m256d sign_bit = _mm256_set1_pd(-0.0);
+  const Lanes3 from[3] = {a, b, c};
+  const Lanes3 along[3] = {ab, sub(c, b), sub(a, c)};
+  for (int e = 0; e < 3; ++e) {
+    const Lanes3 m = cross(along[e], n);
+    const __m256d length = _mm256_sqrt_pd(dot(m, m));
+    const __m256d usable = _mm256_and_pd(shaped, _mm256_cmp_pd(length, _mm256_setzero_pd(), _CMP_GT_OQ));
+    const Lanes3 unit_m{_mm256_and_pd(_mm256_div_pd(m.x, length), usable),
+                        _mm256_and_pd(_mm256_div_pd(m.y, length), usable),
+                        _mm256_and_pd(_mm256_div_pd(m.z, length), usable)};
+    const __m256d offset = dot(unit_m, from[e]);
+    double* edge = block + 36 + 16 * e;
+    _mm256_storeu_pd(edge, unit_m.x);
+    _mm256_storeu_pd(edge + 4, unit_m.y);
+    _mm256_storeu_pd(edge + 8, unit_m.z);
+    _mm256_storeu_pd(edge + 12, _mm256_add_pd(offset, _mm256_mul_pd(unit, _mm256_add_pd(radius, _mm256_andnot_pd(sign_bit, offset)))));
+  }
+  _mm256_storeu_pd(block + 84,
+                   _mm256_mul_pd(unit, _mm256_add_pd(radius, _mm256_andnot_pd(sign_bit, _mm256_loadu_pd(block + 32)))));
 }
 
 }  // namespace
@@ -282,7 +365,7 @@ void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& ge
   const std::uint32_t blocks = (list.source.length + 3) / 4;
   for (std::uint32_t b = 0; b < blocks; ++b) {
     if (b == list.filled) fillBlock(list, geometry, list.filled++);
-    const double* block = list.lanes.data() + std::size_t(b) * PointListCache::kBlock;
+    double* block = list.lanes.data() + std::size_t(b) * PointListCache::kBlock;
     const std::int32_t* ids = list.ids.data() + 4 * std::size_t(b);
     // The block's entries before the first whose bound reaches the best (as scanPointList).
     const int stop = _mm256_movemask_pd(_mm256_cmp_pd(_mm256_loadu_pd(block), _mm256_set1_pd(best_squared), _CMP_GE_OQ));
@@ -292,11 +375,12 @@ void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& ge
       const Lanes3 normal{_mm256_loadu_pd(block + 20), _mm256_loadu_pd(block + 24), _mm256_loadu_pd(block + 28)};
       int pass = lanes.passing(center, _mm256_loadu_pd(block + 16), normal, _mm256_loadu_pd(block + 32), best) &
                  ((1 << count) - 1);
-      while (pass != 0) {
-        const int k = __builtin_ctz(unsigned(pass));
-        pass &= pass - 1;
-        if (tests.add(p, corners[ids[k]], ids[k], best_squared, best_triangle, &closest)) best = std::sqrt(best_squared);
+      if (pass != 0) {
+        if (std::isnan(block[84])) fillEdges(block, ids, geometry);
+        pass &= lanes.passingPrism(block, best_squared);
       }
+      addPassing(pass, p, [&](int k) -> const auto& { return corners[ids[k]]; }, [&](int k) { return ids[k]; }, tests,
+                 best_squared, best_triangle, &closest, best);
     }
     if (stop) break;
   }
@@ -350,15 +434,10 @@ void nearestTriangleBounded(const MeshModel& model, const Vec& p, double& best_s
         __m256d radius, offset;
         loadLanes(spheres[i], spheres[j1], spheres[j2], spheres[j3], center, radius);
         loadLanes(planes[i], planes[j1], planes[j2], planes[j3], normal, offset);
-        int pass = lanes.passing(center, radius, normal, offset, best) & ((1 << count) - 1);
-        while (pass != 0) {
-          const int k = __builtin_ctz(unsigned(pass));
-          pass &= pass - 1;
-          if (tests.add(p, model.corners.in_leaf_order[i + k], model.bvh.triangle_ids[i + k], best_squared, best_triangle,
-                        closest)) {
-            best = std::sqrt(best_squared);
-          }
-        }
+        const int pass = lanes.passing(center, radius, normal, offset, best) & ((1 << count) - 1);
+        addPassing(pass, p, [&](int k) -> const auto& { return model.corners.in_leaf_order[i + k]; },
+                   [&](int k) { return model.bvh.triangle_ids[i + k]; }, tests, best_squared, best_triangle, closest,
+                   best);
       }
       // The batch runs before the walk goes on: the nodes' bounds compare with the best.
       if (tests.run(p, best_squared, best_triangle, closest)) best = std::sqrt(best_squared);

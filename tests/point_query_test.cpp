@@ -334,6 +334,48 @@ TEST(PointQuery, BatchBreaksTiesAsSerial) {
   }
 }
 
+// Points on and a rounding or two off the faces and corners of region cells, in clusters: consecutive points
+// of the batch straddle a cell boundary, where a batch that reused the previous point's cell without the
+// tree's descent would put a point in the wrong leaf. Every answer must be the serial call's, bit for bit,
+// and the brute force's.
+TEST(PointQuery, BatchOnCellBoundariesEqualsSerial) {
+  test::Rng rng(33);
+  // The cube's cell corners are dyadic, many equidistant from two faces: ties, which a wrong leaf's list
+  // breaks its own way.
+  const CflModel model = buildCflModel(unitCube());
+  const Aabb box = model.regions.bounds();
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::uniform_int_distribution<int> offset(-3, 3);
+  std::vector<Eigen::Vector3d> points;
+  while (points.size() < 4000) {
+    Eigen::Vector3d p;
+    for (int axis = 0; axis < 3; ++axis) p[axis] = box.min[axis] + unit(rng) * (box.max[axis] - box.min[axis]);
+    const RegionCell cell = model.regions.locate(p);
+    // A corner of the cell, each coordinate moved by a few ulps either way (or not at all).
+    for (int k = 0; k < 16; ++k) {
+      Eigen::Vector3d q = cell.min_corner;
+      if (k & 1) q.x() += cell.size;
+      for (int axis = 0; axis < 3; ++axis) {
+        for (int step = offset(rng); step != 0; step += step > 0 ? -1 : 1)
+          q[axis] = std::nextafter(q[axis], step > 0 ? INFINITY : -INFINITY);
+      }
+      points.push_back(q);
+    }
+  }
+  PointQueryOptions options;
+  std::vector<PointDistance> batch(points.size());
+  computePointDistances(model, Eigen::Isometry3d::Identity(), points.data(), points.size(), batch.data(), options);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const PointDistance serial = computePointDistance(model, Eigen::Isometry3d::Identity(), points[i], options);
+    ASSERT_EQ(std::memcmp(&batch[i].distance, &serial.distance, sizeof(double)), 0) << i;
+    ASSERT_EQ(batch[i].triangle, serial.triangle) << i;
+    ASSERT_EQ(batch[i].closest_point, serial.closest_point) << i;
+    double brute = INFINITY;
+    for (const auto& c : model.geometry.corners.in_leaf_order) brute = std::min(brute, pointTriangleSquaredDistance(points[i], c[0], c[1], c[2]));
+    ASSERT_NEAR(batch[i].distance, std::sqrt(brute), 1e-12) << i;
+  }
+}
+
 TEST(PointQuery, ConcurrentCallersGetTheSerialAnswers) {
   test::Rng rng(17);
   const CflModel model = buildCflModel(test::makeTorusKnot(2, 3, 1.0, 0.3, 48, 6));

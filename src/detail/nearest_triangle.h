@@ -2,6 +2,7 @@
 // Internal: closest triangle of a MeshModel to a point, through its Bvh.
 
 #include "cfl/mesh_model.h"
+#include "cfl/region_tree.h"
 #include "cfl/triangle_distance.h"
 
 #include <algorithm>
@@ -187,16 +188,23 @@ struct PointListScan {
 /// order) mostly fall in the leaf of the point before, and their scans then read the entries' bounds, spheres
 /// and planes as contiguous lanes instead of gathering them by triangle id. Blocks of four entries, each
 /// kBlock doubles: the squared entry bounds, then the spheres' x, y, z and radius, then the planes' x, y, z
-/// and offset, four lanes each. The last block is padded with infinite bounds, which end every scan. Blocks
-/// are laid out as scans first reach them (`filled` so far): most scans end well before the list does.
+/// and offset, then for each edge of the triangle (ab, bc, ca) its outward normal in the triangle's plane
+/// (unit; zero for a sliver) x, y, z and offset (plus rounding slack), then the plane's rounding slack, four
+/// lanes each. The last block is padded with infinite
+/// bounds, which end every scan. Blocks are laid out as scans first reach them (`filled` so far): most scans
+/// end well before the list does.
 struct PointListCache {
-  static constexpr int kBlock = 36;
+  static constexpr int kBlock = 88;
   static constexpr std::uint32_t kNoLeaf = 0xffffffffu;
   std::uint32_t leaf = kNoLeaf;
   PointListScan source{};
   std::uint32_t filled = 0;
   std::vector<double> lanes;
   std::vector<std::int32_t> ids;  // padded as the lanes, with the last entry's id
+  /// The region cell of the last point located through this cache, when `located`: the next point, likely in
+  /// it too, may skip the tree's descent (see the point query's locateNear).
+  RegionCell cell;
+  bool located = false;
 };
 
 /// nearestTriangleCompact with each triangle of a leaf first bounded by its own sphere and plane

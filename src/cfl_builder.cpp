@@ -280,6 +280,8 @@ constexpr double kNearCells = 4;
 constexpr std::uint32_t kLongestNearList = 256;
 constexpr std::uint32_t kLongestFarList = 64;
 constexpr int kDeepest = 20;  // levels below the root, within RegionTree::kMaxDepth
+// What computeCellList returns for a cell certain to split, whose list it did not compute.
+constexpr std::uint32_t kCertainSplit = RegionTree::kNoList - 1;
 
 // What every cell's list computation reads.
 struct BuildContext {
@@ -308,9 +310,14 @@ struct CellListOutput {
 // (kLongestNearList or kLongestFarList, as the same bound shows) are certain to stay on its list, the rest
 // of the list is never needed: returns RegionTree::kNoList, appends nothing and leaves in out.lower_bound
 // the center's bound, looser than the listed triangles' but enough for a leaf that queries pass to the Bvh.
+//
+// `split_edges` (the triangles' mean edges, or null when the cell may not split for its depth or the budget):
+// when the split rule (see shouldSplit) is certain to hold whatever the rest of the list, returns
+// kCertainSplit, appends nothing and leaves in out.lower_bound the center's bound, a valid lower bound for the
+// children: the list is not needed.
 std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch, const Eigen::Vector3d& min_corner,
                               double size, const int corner_triangle[8], double parent_lower, bool adaptive,
-                              CellListOutput& out) {
+                              const std::vector<double>* split_edges, CellListOutput& out) {
   const MeshModel& geometry = context.geometry;
   const Topology& topology = context.topology;
   const double half = 0.5 * size;
@@ -513,6 +520,33 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     }
   }
   const std::uint32_t candidate_count = static_cast<std::uint32_t>(candidates.size());
+  // Candidates whose culling mask and exclusion tests certainlyListed has computed, in order.
+  std::uint32_t early_tested = count_early ? candidate_count : 0;
+  // Whether the cell splits whatever the rest of its list. The listed lower bound is at most the center's
+  // distance (the list holds a nearest triangle of the center). With T the largest mean edge that lets the
+  // cell split, any list L holding the certain entries C has mean edge below T when the sum over L of (edge - T)
+  // is negative; its largest value over such L, the sum over C plus the positive excesses of the other
+  // candidates, is the excess of all candidates less the shortfalls of C. The margins, far above the rounding
+  // of the bounds and of the sums, only make the rule more careful than shouldSplit.
+  if (split_edges && !count_early && size > kFarCellRatio * center_distance * (1 + 1e-6)) {
+    const double largest_mean = size / (kSmallestCell * (1 + 1e-6));
+    double excess = 0;
+    for (std::uint32_t n = 0; n < candidate_count; ++n) {
+      excess += std::max(0.0, (*split_edges)[leaf_triangle[candidates[n]]] - largest_mean);
+    }
+    double shortfall = 0;
+    std::uint32_t certain_entries = 0;
+    while (early_tested < candidate_count) {
+      const int i = candidates[early_tested++];
+      if (!certainlyListed(i)) continue;
+      ++certain_entries;
+      shortfall += std::max(0.0, largest_mean - (*split_edges)[leaf_triangle[i]]);
+      if (certain_entries > kListTarget && shortfall > excess * (1 + 1e-6)) {
+        out.lower_bound = std::max(0.0, center_lower);
+        return kCertainSplit;
+      }
+    }
+  }
 
   // Paper section 3.6, in a form that is provably conservative on any mesh: triangle i may leave the
   // list when every point of the voxel has its closest point of i on an edge shared with a triangle j
@@ -581,7 +615,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     left = missing + 3;                     // shown to leave
     for (std::uint32_t n = 0; n < candidate_count; ++n) {
       const int i = candidates[n];
-      const std::uint8_t mask = count_early ? scratch.early_masks[n] : edgeRegionMask(i);
+      const std::uint8_t mask = n < early_tested ? scratch.early_masks[n] : edgeRegionMask(i);
       scratch.marks[i] = mask ? undecided : stays;
       scratch.triangle_masks[i] = mask;
       any_droppable = any_droppable || mask;
@@ -602,7 +636,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     if (culling && scratch.marks[i] == left) continue;
     double d_min, d_center;
     bool excluded;
-    if (count_early && scratch.early_state[n] != kNotTested) {
+    if (n < early_tested && scratch.early_state[n] != kNotTested) {
       excluded = scratch.early_state[n] == kExcluded;
       d_min = scratch.early_quick_bounds[n];
       d_center = scratch.early_center_distances[n];
@@ -778,9 +812,12 @@ class SubtreeBuilder {
   void build(ListScratch& scratch, const Eigen::Vector3d& min_corner, double size, int depth, double parent_lower,
              const double corner_distance[8], const int corner_triangle[8], std::uint32_t slot, Subtree& out) const {
     const std::size_t begin = out.lists.ids.size();
-    const std::uint32_t length =
-        computeCellList(context_, scratch, min_corner, size, corner_triangle, parent_lower, adaptive_, out.lists);
-    if (length != RegionTree::kNoList && shouldSplit(out, begin, length, size, depth)) {
+    const bool may_split =
+        adaptive_ && depth < kDeepest && budget_.bytes.load(std::memory_order_relaxed) <= budget_.limit;
+    const std::uint32_t length = computeCellList(context_, scratch, min_corner, size, corner_triangle, parent_lower,
+                                                 adaptive_, may_split ? &triangle_edge_ : nullptr, out.lists);
+    if (length == kCertainSplit ||
+        (length != RegionTree::kNoList && shouldSplit(out, begin, length, size, depth))) {
       out.lists.ids.resize(begin);
       out.lists.bounds.resize(begin);
       split(scratch, min_corner, size, depth, out.lists.lower_bound, corner_distance, corner_triangle, slot, out);

@@ -16,14 +16,15 @@ namespace cfl {
 
 /// Which algorithm answers a distance query. Both are exact.
 enum class QueryMode {
-  /// The default: B's Bvh is walked best-first against A's voxel lower bounds and distance field, B's
-  /// triangles are tested against the CFLs of the voxels they touch, and parts of B outside A's grid against
-  /// A's Bvh.
+  /// The default: B's Bvh is walked best-first against the lower bounds and distance field of A's region
+  /// cells, B's triangles are tested against the CFLs of the leaf cells they touch, and parts of B outside
+  /// A's regions against A's Bvh.
   kHierarchical,
-  /// The paper's four steps, kept to reproduce its Table 2: collect the voxels of A touched by B's
+  /// The paper's four steps, kept to reproduce its Table 2 (voxels are the regions' leaf cells; with
+  /// BuildOptions::resolution > 0 they form the paper's uniform grid): collect the voxels of A touched by B's
   /// triangles, (with B's CFLs) keep the pairs passing the mutual closest-feature condition, visit the voxels
   /// in increasing lower bound, test each voxel's CFL against the triangles of B in it, stop when the next
-  /// lower bound is not below the best distance. Parts outside the grid use A's Bvh, so it stays exact.
+  /// lower bound is not below the best distance. Parts outside the regions use A's Bvh, so it stays exact.
   kPaper,
 };
 
@@ -83,24 +84,19 @@ DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA,
 /// wherever a point of B moves by up to `reach`, either it stays at least `level` minus its motion from A,
 /// or one of its closest triangles of A is listed with its triangle of B. The search builds the list as it
 /// goes: every pair it does not prune below `level`, taking each triangle of B against the voxel lists
-/// within `reach` of it (the lists hold the closest triangles of A to every point of their voxels) or, past
-/// the grid, against A's Bvh. The next query moves B by `motion` from that pose (a bound over every point
+/// within `reach` of it (the lists hold the closest triangles of A to every point of their cells) or, past
+/// the regions, against A's Bvh. The next query moves B by `motion` from that pose (a bound over every point
 /// of B, from the two poses) and tests only the listed pairs; when `motion <= reach` and their best
 /// distance is at most `level - motion`, nothing else can be closer and it is the exact answer. Otherwise
 /// the query searches again, starting from the best pair found, and refreshes the certificate: it looks a
 /// margin (the reach) past its best distance, sized from the motion since the previous query so that the
-/// certificate lasts several frames. When B moves more than about 5% of a voxel per query, a certificate
-/// would cost more than it saves: the query then searches with the previous answer as a hint (see
+/// certificate lasts several frames. When B moves more than 5% of a leaf cell's edge per query, a
+/// certificate would cost more than it saves: the query then searches with the previous answer as a hint (see
 /// hint_triangle_a), as fast as a hinted query, and lists nothing.
 ///
-/// In `cfl bench --moving 10000 --clock cpu` (bunny 1% apart, B moving 0.05% of the diagonal and turning
-/// 0.07 degrees per frame; three runs at 54a4065) the certificate answered 8246 of 10000 frames; the
-/// median query took 11.4 us against 28.2 us cold (2.47x; 2.43x and 2.43x in the other runs), the mean
-/// 21.8 against 32.6 us (1.50x; 1.50x and 1.51x: the searches that refresh the certificate cost more than
-/// a cold query). Listing pairs rather than B's triangles (which a reused frame had to take through their
-/// voxel lists again) took the median from 2.00x / 1.89x / 2.02x. At 1000 frames (0.46% and 0.72 degrees)
-/// no certificate pays and the query is a hinted one that lists nothing: 1.24x / 1.27x / 1.23x (the hinted
-/// query without a cache 1.26x / 1.25x / 1.24x).
+/// The certificate pays when B moves by a small fraction of a leaf cell per frame, as a robot tracking a
+/// trajectory does; `cfl bench --moving N` measures it against cold queries (docs/performance.md has the
+/// figures).
 ///
 /// Plain data written by computeDistance: create one per pair of models and pass it to every query of
 /// that pair. Calling with other models, another mode, a non-zero rel_err / abs_err or a finite upper_bound

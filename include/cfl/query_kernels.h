@@ -8,8 +8,8 @@
 /// x86-64-v3 (AVX2, BMI2, ...), whose three-operand VEX instructions save register copies. The first query
 /// picks x86-64-v3 when the CPU runs it. Neither build fuses multiplies into adds (the library is compiled
 /// with -ffp-contract=off), so every floating-point operation rounds as written: both return bit for bit the
-/// same results, counters included, on every machine. At 2% of the diagonal the x86-64-v3 build runs 12% to
-/// 13% fewer instructions per query and takes 0.91 to 0.92 of the time (bunny, wuson, rock; docs/performance.md).
+/// same results, counters included, on every machine; x86-64-v3 runs fewer instructions per query
+/// (docs/performance.md has the measurements).
 ///
 /// The environment variable CFL_KERNELS, read once at the first query, overrides the choice: `auto` (the
 /// default), `generic` or `x86-64-v3`.

@@ -22,6 +22,8 @@
 #include "detail/query_kernels.h"
 
 #if CFL_X86_64_V3_KERNELS
+// The list filter's AVX2 intrinsics (see distance_search.inc), before the pragma as every other include.
+#include <immintrin.h>
 
 #pragma GCC push_options
 #pragma GCC target("arch=x86-64-v3")
@@ -30,7 +32,10 @@ namespace cfl::detail {
 namespace x86_64_v3 {
 namespace {
 // Inside x86_64_v3, the search's calls to the triangle kernels find this build's (detail/query_kernels.h).
+// GCC's target pragma does not define __AVX2__: the search learns of it from this macro.
+#define CFL_SEARCH_AVX2 1
 #include "detail/distance_search.inc"
+#undef CFL_SEARCH_AVX2
 }  // namespace
 }  // namespace x86_64_v3
 

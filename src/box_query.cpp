@@ -15,11 +15,16 @@
 namespace cfl {
 namespace {
 
-// Squared distance from p (box frame) to the solid box [-half, half], and the box's closest point.
-double pointBoxSquaredDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& half, Eigen::Vector3d* closest) {
-  const Eigen::Vector3d q = p.cwiseMax(-half).cwiseMin(half);
-  if (closest) *closest = q;
-  return (p - q).squaredNorm();
+// Squared distance from p (box frame) to the solid box [-half, half], and the box's closest point. Scalar
+// code: it runs for every triangle corner a query screens, and Eigen's 3-vectors cost more here.
+inline double pointBoxSquaredDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& half, Eigen::Vector3d* closest) {
+  double squared = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double q = std::min(std::max(p[k], -half[k]), half[k]);
+    if (closest) (*closest)[k] = q;
+    squared += (p[k] - q) * (p[k] - q);
+  }
+  return squared;
 }
 
 // Whether segment [p0, p1] (box frame) meets the solid box: the slab test, closed on both ends.

@@ -3,6 +3,7 @@
 #include "cfl/error.h"
 #include "cfl/triangle_distance.h"
 #include "detail/box_triangle_bound.h"
+#include "detail/builder_test_hooks.h"
 #include "detail/nearest_triangle.h"
 
 #include <tbb/enumerable_thread_specific.h>
@@ -25,6 +26,16 @@
 #include <unistd.h>
 
 namespace cfl {
+namespace {
+
+std::atomic<bool> early_split_decisions{true};
+std::atomic<std::int64_t> early_split_decision_count{0};
+
+}  // namespace
+
+void detail::setEarlySplitDecisions(bool enabled) { early_split_decisions = enabled; }
+std::int64_t detail::earlySplitDecisionCount() { return early_split_decision_count.load(); }
+
 namespace {
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
@@ -288,6 +299,7 @@ struct BuildContext {
   const MeshModel& geometry;
   const Topology& topology;
   bool culling;
+  bool early_split;  // see detail::setEarlySplitDecisions
 };
 
 // A cell's list, appended to `ids` / `bounds` (bounds in units of size / 32), and its lower bound.
@@ -528,7 +540,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   // is negative; its largest value over such L, the sum over C plus the positive excesses of the other
   // candidates, is the excess of all candidates less the shortfalls of C. The margins, far above the rounding
   // of the bounds and of the sums, only make the rule more careful than shouldSplit.
-  if (split_edges && !count_early && size > kFarCellRatio * center_distance * (1 + 1e-6)) {
+  if (split_edges && context.early_split && !count_early && size > kFarCellRatio * center_distance * (1 + 1e-6)) {
     const double largest_mean = size / (kSmallestCell * (1 + 1e-6));
     double excess = 0;
     for (std::uint32_t n = 0; n < candidate_count; ++n) {
@@ -543,6 +555,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
       shortfall += std::max(0.0, largest_mean - (*split_edges)[leaf_triangle[i]]);
       if (certain_entries > kListTarget && shortfall > excess * (1 + 1e-6)) {
         out.lower_bound = std::max(0.0, center_lower);
+        early_split_decision_count.fetch_add(1, std::memory_order_relaxed);
         return kCertainSplit;
       }
     }
@@ -956,7 +969,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   arena.execute([&] { sign_task.run([&] { model.sign = analyzeMeshSign(geometry); }); });
   const TaskGroupWaiter sign_waiter{arena, sign_task};
   const Topology topology = options.topology_culling ? makeTopology(geometry) : Topology();
-  const BuildContext context{geometry, topology, options.topology_culling};
+  const BuildContext context{geometry, topology, options.topology_culling, early_split_decisions.load()};
   std::vector<double> triangle_edge(geometry.corners.size());
   for (std::size_t t = 0; t < triangle_edge.size(); ++t) {
     const auto& c = geometry.corners[t];

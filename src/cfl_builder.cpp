@@ -944,7 +944,7 @@ class SubtreeBuilder {
           const int hint = corner_triangle[(a / 2) | (b / 2) << 1 | (c / 2) << 2];
           const auto [distance, triangle] =
               cachedNearestWithHint(context_.geometry, min_corner + half * Eigen::Vector3d(a, b, c), hint,
-                                                guesses, guess_count, scratch);
+                                    guesses, guess_count, scratch);
           lattice.distance[n] = std::nextafter(distance, 0.0);
           lattice.triangle[n] = triangle;
         }
@@ -1085,8 +1085,8 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       out.nodes.assign(1, 0);
       ListScratch& scratch = scratches.local();
       scratch.lattice_nearest.clear();  // points of other root cells: seldom met again
-      builder.build(scratch, tree.origin + tree.root_size * Eigen::Vector3d(i, j, k),
-                                    tree.root_size, 0, 0.0, corner_distance, corner_triangle, 0, out);
+      builder.build(scratch, tree.origin + tree.root_size * Eigen::Vector3d(i, j, k), tree.root_size, 0, 0.0,
+                    corner_distance, corner_triangle, 0, out);
       ++done;
       cell_ticker.tick();
     }, tbb::simple_partitioner());

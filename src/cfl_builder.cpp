@@ -3,6 +3,7 @@
 #include "cfl/error.h"
 #include "cfl/triangle_distance.h"
 #include "detail/box_triangle_bound.h"
+#include "detail/builder_test_hooks.h"
 #include "detail/nearest_triangle.h"
 
 #include <tbb/enumerable_thread_specific.h>
@@ -17,6 +18,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <sstream>
 #include <thread>
@@ -25,6 +27,16 @@
 #include <unistd.h>
 
 namespace cfl {
+namespace {
+
+std::atomic<bool> early_split_decisions{true};
+std::atomic<std::int64_t> early_split_decision_count{0};
+
+}  // namespace
+
+void detail::setEarlySplitDecisions(bool enabled) { early_split_decisions = enabled; }
+std::int64_t detail::earlySplitDecisionCount() { return early_split_decision_count.load(); }
+
 namespace {
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
@@ -220,6 +232,16 @@ struct ListScratch {
   // Per entry of the cell's list: its full bound when entry_exact, else its quick bound (finishCellList).
   std::vector<double> entry_bounds;
   std::vector<std::uint8_t> entry_exact;
+  // The lattice points (see Lattice) of the current root cell's splits, by their coordinates' bits: the
+  // squared distance and the first nearest triangle the search visits. Neighbouring cells that both split
+  // share a face's points and up to four cells an edge's, which without it were each searched again; the
+  // bits must match, so that a point is never answered for a neighbour a rounding away.
+  struct PointKeyHash {
+    std::size_t operator()(const std::array<std::uint64_t, 3>& key) const {
+      return std::size_t((key[0] * 0x9e3779b97f4a7c15ull ^ key[1]) * 0xc2b2ae3d27d4eb4full ^ key[2]) * 0x165667b19e3779f9ull;
+    }
+  };
+  std::unordered_map<std::array<std::uint64_t, 3>, std::pair<double, int>, PointKeyHash> lattice_nearest;
 };
 
 // The default memory limit of the regions: the smaller of half the machine's memory and this much, so that
@@ -288,6 +310,7 @@ struct BuildContext {
   const MeshModel& geometry;
   const Topology& topology;
   bool culling;
+  bool early_split;  // see detail::setEarlySplitDecisions
 };
 
 // A cell's list, appended to `ids` / `bounds` (bounds in units of size / 32), and its lower bound.
@@ -528,7 +551,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   // is negative; its largest value over such L, the sum over C plus the positive excesses of the other
   // candidates, is the excess of all candidates less the shortfalls of C. The margins, far above the rounding
   // of the bounds and of the sums, only make the rule more careful than shouldSplit.
-  if (split_edges && !count_early && size > kFarCellRatio * center_distance * (1 + 1e-6)) {
+  if (split_edges && context.early_split && !count_early && size > kFarCellRatio * center_distance * (1 + 1e-6)) {
     const double largest_mean = size / (kSmallestCell * (1 + 1e-6));
     double excess = 0;
     for (std::uint32_t n = 0; n < candidate_count; ++n) {
@@ -543,6 +566,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
       shortfall += std::max(0.0, largest_mean - (*split_edges)[leaf_triangle[i]]);
       if (certain_entries > kListTarget && shortfall > excess * (1 + 1e-6)) {
         out.lower_bound = std::max(0.0, center_lower);
+        early_split_decision_count.fetch_add(1, std::memory_order_relaxed);
         return kCertainSplit;
       }
     }
@@ -764,6 +788,38 @@ std::pair<double, int> nearestWithHint(const MeshModel& geometry, const Eigen::V
   return {std::sqrt(best), best_triangle};
 }
 
+// As nearestWithHint(geometry, p, hint), ties included, through `cache`: that answer is `hint` unless a
+// triangle is strictly nearer, else the first nearest triangle the search visits, the same whatever the
+// search's initial bound (the bound prunes nodes, it never reorders them, and one just above a guess's
+// distance prunes no node holding a nearest triangle). So the cache keeps the search's first nearest and
+// each cell compares it with its own hint. `guesses` (triangles near p, such as the cell's corners') give
+// the bound when p is new.
+std::pair<double, int> cachedNearestWithHint(const MeshModel& geometry, const Eigen::Vector3d& p, int hint,
+                                             const int* guesses, int guess_count, ListScratch& cache) {
+  auto squaredDistance = [&](int t) {
+    const auto& c = geometry.corners[t];
+    return pointTriangleSquaredDistance(p, c[0], c[1], c[2]);
+  };
+  if (hint < 0) return nearestWithHint(geometry, p, hint);
+  const double hint_squared = squaredDistance(hint);
+  std::array<std::uint64_t, 3> key;
+  std::memcpy(key.data(), p.data(), sizeof key);
+  auto found = cache.lattice_nearest.find(key);
+  if (found == cache.lattice_nearest.end()) {
+    double bound = hint_squared;
+    for (int n = 0; n < guess_count; ++n) bound = std::min(bound, squaredDistance(guesses[n]));
+    double best = std::nextafter(bound * (1 + 1e-12), kInfinity);
+    int best_triangle = -1;
+    detail::nearestTriangle(geometry, p, best, best_triangle);
+    // Nothing below the bound: distances that are not finite (coordinates near the limits of double).
+    if (best_triangle < 0) return nearestWithHint(geometry, p, hint);
+    found = cache.lattice_nearest.emplace(key, std::make_pair(best, best_triangle)).first;
+  }
+  const auto [nearest_squared, nearest_triangle] = found->second;
+  if (!(nearest_squared < hint_squared)) return {std::sqrt(hint_squared), hint};
+  return {std::sqrt(nearest_squared), nearest_triangle};
+}
+
 // Rounded down to float so that it stays a lower bound however it was rounded on the way.
 float lowerFloat(double x) {
   if (!(x < double(std::numeric_limits<float>::max()))) return std::numeric_limits<float>::max();
@@ -866,6 +922,15 @@ class SubtreeBuilder {
              const double corner_distance[8], const int corner_triangle[8], std::uint32_t slot, Subtree& out) const {
     Lattice lattice;
     const double half = 0.5 * size;
+    // The corners' distinct triangles: near every lattice point, they bound its search.
+    int guesses[8];
+    int guess_count = 0;
+    for (int n = 0; n < 8; ++n) {
+      if (corner_triangle[n] >= 0 &&
+          std::find(guesses, guesses + guess_count, corner_triangle[n]) == guesses + guess_count) {
+        guesses[guess_count++] = corner_triangle[n];
+      }
+    }
     for (int c = 0; c < 3; ++c) {
       for (int b = 0; b < 3; ++b) {
         for (int a = 0; a < 3; ++a) {
@@ -878,7 +943,8 @@ class SubtreeBuilder {
           }
           const int hint = corner_triangle[(a / 2) | (b / 2) << 1 | (c / 2) << 2];
           const auto [distance, triangle] =
-              nearestWithHint(context_.geometry, min_corner + half * Eigen::Vector3d(a, b, c), hint);
+              cachedNearestWithHint(context_.geometry, min_corner + half * Eigen::Vector3d(a, b, c), hint,
+                                    guesses, guess_count, scratch);
           lattice.distance[n] = std::nextafter(distance, 0.0);
           lattice.triangle[n] = triangle;
         }
@@ -956,7 +1022,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   arena.execute([&] { sign_task.run([&] { model.sign = analyzeMeshSign(geometry); }); });
   const TaskGroupWaiter sign_waiter{arena, sign_task};
   const Topology topology = options.topology_culling ? makeTopology(geometry) : Topology();
-  const BuildContext context{geometry, topology, options.topology_culling};
+  const BuildContext context{geometry, topology, options.topology_culling, early_split_decisions.load()};
   std::vector<double> triangle_edge(geometry.corners.size());
   for (std::size_t t = 0; t < triangle_edge.size(); ++t) {
     const auto& c = geometry.corners[t];
@@ -1017,8 +1083,10 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       }
       Subtree& out = subtrees[r];
       out.nodes.assign(1, 0);
-      builder.build(scratches.local(), tree.origin + tree.root_size * Eigen::Vector3d(i, j, k),
-                                    tree.root_size, 0, 0.0, corner_distance, corner_triangle, 0, out);
+      ListScratch& scratch = scratches.local();
+      scratch.lattice_nearest.clear();  // points of other root cells: seldom met again
+      builder.build(scratch, tree.origin + tree.root_size * Eigen::Vector3d(i, j, k), tree.root_size, 0, 0.0,
+                    corner_distance, corner_triangle, 0, out);
       ++done;
       cell_ticker.tick();
     }, tbb::simple_partitioner());

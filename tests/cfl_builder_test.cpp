@@ -4,6 +4,7 @@
 // pays, consistent statistics, thread-independent results and a well-behaved progress callback.
 
 #include "cfl/cfl_model.h"
+#include "../src/detail/builder_test_hooks.h"
 #include "support/test_meshes.h"
 
 #include <gtest/gtest.h>
@@ -298,6 +299,46 @@ TEST(CflBuilder, ListsAreConservativeOnAThinPlate) {
     EXPECT_GT(model.regions.max_depth, 0) << label;
     EXPECT_EQ(checkConservative(model, plate, 2000, culling ? 52 : 51, label), 0) << label;
   }
+}
+
+// A cell may decide to split before its list is complete (when the split rule holds whatever the rest of the
+// list): a shortcut for speed, which must not change the model. Built with and without it, every cell, every
+// list, every entry bound and every lower bound must agree; the count proves the shortcut was taken.
+TEST(CflBuilder, EarlySplitDecisionsChangeNothing) {
+  std::vector<NamedMesh> meshes = testMeshes();
+  meshes.push_back({"bunny", test::loadBunny()});
+  meshes.push_back({"thin plate", test::makeThinPlate(1.0, 0.05, 12)});
+  std::int64_t decisions = 0;
+  for (const NamedMesh& named : meshes) {
+    for (bool culling : {false, true}) {
+      const std::string label = named.name + (culling ? " with topology culling" : "");
+      const std::int64_t before = detail::earlySplitDecisionCount();
+      const CflModel early = buildCflModel(named.mesh, options(0, culling));
+      decisions += detail::earlySplitDecisionCount() - before;
+      detail::setEarlySplitDecisions(false);
+      const CflModel complete = buildCflModel(named.mesh, options(0, culling));
+      detail::setEarlySplitDecisions(true);
+      const RegionTree& a = early.regions;
+      const RegionTree& b = complete.regions;
+      EXPECT_EQ(a.nodes, b.nodes) << label;
+      EXPECT_EQ(a.leaf_list, b.leaf_list) << label;
+      EXPECT_EQ(a.list_offsets, b.list_offsets) << label;
+      EXPECT_EQ(a.list_entry_ids, b.list_entry_ids) << label;
+      EXPECT_EQ(a.list_high_ids, b.list_high_ids) << label;
+      EXPECT_EQ(a.list_entry_bounds, b.list_entry_bounds) << label;
+      EXPECT_EQ(a.leaf_corner_distance, b.leaf_corner_distance) << label;
+      // A leaf that stores no list may keep its center's bound, which starts from its parent's: a parent that
+      // split early passes down its center's bound instead of its listed one. Either is valid (see
+      // LeavesWithoutAListKeepAValidLowerBound); the listed leaves' bounds come from their lists alone.
+      ASSERT_EQ(a.leaf_lower_bound.size(), b.leaf_lower_bound.size()) << label;
+      int differing = 0;
+      for (std::size_t leaf = 0; leaf < a.leaf_list.size(); ++leaf) {
+        differing += a.hasList(std::uint32_t(leaf)) && a.leaf_lower_bound[leaf] != b.leaf_lower_bound[leaf];
+      }
+      EXPECT_EQ(differing, 0) << label;
+    }
+  }
+  EXPECT_GT(decisions, 0);
 }
 
 // A far leaf may decide it stores no list before its list is complete, and then keeps a lower bound from

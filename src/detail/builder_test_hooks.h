@@ -1,0 +1,18 @@
+#pragma once
+/// @file
+/// Test-only switches of buildCflModel (src/cfl_builder.cpp): they may change how long a build takes, never
+/// the model it builds, and the tests check exactly that.
+
+#include <cstdint>
+
+namespace cfl::detail {
+
+/// Whether a cell may decide to split before its list is complete, once the split rule is certain to hold
+/// whatever the rest of the list (true unless a test turns it off). Read once at the start of each build:
+/// set it only while no build runs.
+void setEarlySplitDecisions(bool enabled);
+
+/// How many cells have split that way since the program started, over all builds (thread safe).
+std::int64_t earlySplitDecisionCount();
+
+}  // namespace cfl::detail

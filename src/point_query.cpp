@@ -338,12 +338,21 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
 void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
                        int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four,
                        detail::PointListCache* cache, int hint_triangle) {
+  if (hint_triangle >= 0) {
+    // The nearby point's closest triangle, at its exact distance from this point, is mostly this point's
+    // closest too: a bound at (barely above) the answer from the start, so that the scan stops at the first
+    // entry bound reaching the answer and the others' bounds reject more. Its distance is one of those the
+    // search minimizes, so the least is no more.
+    const auto& c = model.geometry.corners[hint_triangle];
+    hint_squared = std::min(hint_squared, pointTriangleSquaredDistance(p_M, c[0], c[1], c[2]));
+  }
   const double seed = hint_squared * (1 + 1e-9);
   if (seed > 0 && seed < best_squared) {
     double found_squared = seed;
     int found = -1;
     Eigen::Vector3d q;
-    searchNearest(model, p_M, found_squared, found, q, four, cache, hint_triangle);
+    // The seed already holds the hint triangle's distance: no need for the Bvh walk to test it again.
+    searchNearest(model, p_M, found_squared, found, q, four, cache);
     if (found >= 0) {
       best_squared = found_squared;
       best_triangle = found;
@@ -552,13 +561,13 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   // Queries positions [begin, end) of the walk; each answer goes to its caller's index.
   auto queryRange = [&](std::size_t begin, std::size_t end) {
     if (ordered) {
-      // Along the curve the previous point is close by: its distance plus the step, distance being
-      // 1-Lipschitz, hints at this one's (a hint never changes an answer, see searchNearestFrom). The
+      // Along the curve the previous point is close by, and so is its closest point: this point's distance
+      // to that point of the mesh bounds its own distance from above, tighter than the previous distance
+      // plus the step (a hint never changes an answer, see searchNearestFrom). The
       // leaves and lists are those of the previous queries, mostly cached: no prefetcher.
       // Consecutive points mostly share a leaf: its list, laid out once, serves them all.
       detail::PointListCache cache;
-      double previous = std::numeric_limits<double>::infinity();
-      Eigen::Vector3d previous_W = Eigen::Vector3d::Zero();
+      Eigen::Vector3d previous_closest_W = Eigen::Vector3d::Zero();
       int previous_triangle = -1;
       // The caller's arrays are read and written out of order: each point and result its own cache miss,
       // fetched ahead.
@@ -572,11 +581,11 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
           prefetchForWrite(reinterpret_cast<const char*>(&results[ahead] + 1) - 1);
         }
         const std::size_t i = ordered[j];
-        const double hint = previous + (points_W[i] - previous_W).norm();
+        const double hint = previous_triangle >= 0 ? (points_W[i] - previous_closest_W).squaredNorm()
+                                                   : std::numeric_limits<double>::infinity();
         results[i] =
-            pointDistance(model, X_WM, X_MW, points_W[i], options, four, &cache, hint * hint, previous_triangle);
-        previous = std::abs(results[i].distance);
-        previous_W = points_W[i];
+            pointDistance(model, X_WM, X_MW, points_W[i], options, four, &cache, hint, previous_triangle);
+        previous_closest_W = results[i].closest_point;
         previous_triangle = results[i].triangle;
       }
       return;

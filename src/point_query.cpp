@@ -344,6 +344,11 @@ void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::
     // entry bound reaching the answer and the others' bounds reject more. Its distance is one of those the
     // search minimizes, so the least is no more.
     const auto& c = model.geometry.corners[hint_triangle];
+#if CFL_X86_64_V3_KERNELS
+    if (four != nullptr) {
+      hint_squared = std::min(hint_squared, detail::x86_64_v3::pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], nullptr));
+    } else
+#endif
     hint_squared = std::min(hint_squared, pointTriangleSquaredDistance(p_M, c[0], c[1], c[2]));
   }
   const double seed = hint_squared * (1 + 1e-9);

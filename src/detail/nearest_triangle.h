@@ -114,6 +114,10 @@ inline void nearestTriangleCompact(const MeshModel& model, const Eigen::Vector3d
 using PointTriangles4 = void (*)(const Eigen::Vector3d& p, const std::array<Eigen::Vector3d, 3>* const triangles[4],
                                  double squared[4], Eigen::Vector3d closest[4]);
 
+/// pointTriangleSquaredDistance of some build (same contract, same bits).
+using PointTriangle1 = double (*)(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                  const Eigen::Vector3d& c, Eigen::Vector3d* closest);
+
 /// Exact tests waiting to run four at a time. A scan adds the candidates its bounds let through and runs the
 /// batch when four wait or the scan ends; the batch then accepts, in the order they were added, each
 /// triangle strictly closer than the best so far, as the scan testing them one by one would. Its bounds meanwhile
@@ -122,6 +126,9 @@ using PointTriangles4 = void (*)(const Eigen::Vector3d& p, const std::array<Eige
 /// included, is the one-by-one scan's. Without a kernel each candidate is tested as it comes.
 struct PendingTriangleTests {
   PointTriangles4 four = nullptr;
+  /// The one-triangle kernel of the same build as `four` (the same bits as pointTriangleSquaredDistance,
+  /// fewer instructions in the x86-64-v3 build), or nullptr: pointTriangleSquaredDistance.
+  PointTriangle1 one = nullptr;
   const std::array<Eigen::Vector3d, 3>* triangles[4];
   int ids[4];
   int count = 0;
@@ -145,7 +152,7 @@ struct PendingTriangleTests {
       for (int k = 0; k < count; ++k) {
         const auto& c = *triangles[k];
         Eigen::Vector3d q;
-        const double d = pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q);
+        const double d = one != nullptr ? one(p, c[0], c[1], c[2], &q) : pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q);
         if (d < best_squared) {
           best_squared = d;
           best_triangle = ids[k];

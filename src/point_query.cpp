@@ -266,6 +266,11 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       const double scale = p_M.cwiseAbs().sum();
       detail::PendingTriangleTests tests;
       tests.four = four;
+      if (cache != nullptr) {
+        tests.known_id = cache->known_triangle;
+        tests.known_squared = cache->known_squared;
+        tests.known_closest = cache->known_closest;
+      }
       for (std::uint32_t n = 0; n < length; ++n, ++bounds) {
         // Entries are sorted by bound: once one reaches the best distance, none after it can beat it.
         const double bound = double(*bounds) * unit;
@@ -328,6 +333,10 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
   nearestTriangleFast(model.geometry, p_M, best_squared, best_triangle, &closest, four);
 }
 
+void searchSeeded(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
+                  int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four,
+                  detail::PointListCache* cache, int hint_triangle);
+
 // searchNearest with a hint: `hint_squared` (or infinity), a bound that is likely to be a little above the
 // closest distance, e.g. from the answer for a point nearby (distance being 1-Lipschitz, no more than that
 // point's distance plus the step between them). Barely inflated, it bounds a first search, so that fewer
@@ -344,13 +353,29 @@ void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::
     // entry bound reaching the answer and the others' bounds reject more. Its distance is one of those the
     // search minimizes, so the least is no more.
     const auto& c = model.geometry.corners[hint_triangle];
+    Eigen::Vector3d q;
 #if CFL_X86_64_V3_KERNELS
-    if (four != nullptr) {
-      hint_squared = std::min(hint_squared, detail::x86_64_v3::pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], nullptr));
-    } else
+    const double d = four != nullptr ? detail::x86_64_v3::pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q)
+                                     : pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
+#else
+    const double d = pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
 #endif
-    hint_squared = std::min(hint_squared, pointTriangleSquaredDistance(p_M, c[0], c[1], c[2]));
+    hint_squared = std::min(hint_squared, d);
+    if (cache != nullptr) {
+      // The scans take this result (the kernel of their build's bits) when they reach the triangle.
+      cache->known_triangle = hint_triangle;
+      cache->known_squared = d;
+      cache->known_closest = q;
+    }
   }
+  searchSeeded(model, hint_squared, p_M, best_squared, best_triangle, closest, four, cache, hint_triangle);
+  if (cache != nullptr) cache->known_triangle = -1;
+}
+
+// searchNearestFrom's searches, once the hint is known.
+void searchSeeded(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
+                  int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four,
+                  detail::PointListCache* cache, int hint_triangle) {
   const double seed = hint_squared * (1 + 1e-9);
   if (seed > 0 && seed < best_squared) {
     double found_squared = seed;

@@ -362,6 +362,9 @@ void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& ge
   PendingTriangleTests tests;
   tests.four = &pointTriangleSquaredDistances4;
   tests.one = &pointTriangleSquaredDistance;
+  tests.known_id = list.known_triangle;
+  tests.known_squared = list.known_squared;
+  tests.known_closest = list.known_closest;
   double best = std::sqrt(best_squared);
   const PointBoundLanes lanes(p);
   const std::uint32_t blocks = (list.source.length + 3) / 4;

@@ -186,23 +186,24 @@ void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, do
   }
 }
 
+// Whether p_M lies inside the cache's located cell by more than its margin (see locateNear).
+inline bool insideCachedCell(const detail::PointListCache& cache, const Eigen::Vector3d& p_M) {
+  const RegionCell& cell = cache.cell;
+  return ((p_M - cell.min_corner).array() > cache.margin).all() &&
+         ((cell.min_corner.array() + cell.size) - p_M.array() > cache.margin).all();
+}
+
 // regions.locate(p_M), through the cell the cache's last point was in when p_M lies inside that cell by more
 // than a margin: locate's fixed point and the cell's corner round at about 1e-16 of the coordinates' scale
 // (the grid's extent plus its offset from the origin), so such a point descends to that very cell, and
 // consecutive points of a batch mostly do. Points nearer a face take the descent.
 RegionCell locateNear(const RegionTree& regions, const Eigen::Vector3d& p_M, detail::PointListCache* cache) {
   if (cache == nullptr) return regions.locate(p_M);
-  if (cache->located) {
-    const RegionCell& cell = cache->cell;
-    const int widest = std::max({regions.root_dims[0], regions.root_dims[1], regions.root_dims[2]});
-    const double margin = 1e-12 * (regions.root_size * double(widest) + regions.origin.cwiseAbs().maxCoeff());
-    if (((p_M - cell.min_corner).array() > margin).all() &&
-        ((cell.min_corner.array() + cell.size) - p_M.array() > margin).all()) {
-      return cell;
-    }
-  }
+  if (cache->located && insideCachedCell(*cache, p_M)) return cache->cell;
   cache->cell = regions.locate(p_M);
   cache->located = true;
+  const int widest = std::max({regions.root_dims[0], regions.root_dims[1], regions.root_dims[2]});
+  cache->margin = 1e-12 * (regions.root_size * double(widest) + regions.origin.cwiseAbs().maxCoeff());
   return cache->cell;
 }
 
@@ -213,6 +214,17 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
                    Eigen::Vector3d& closest, detail::PointTriangles4 four, detail::PointListCache* cache,
                    int hint_triangle = -1) {
   const RegionTree& regions = model.regions;
+#if CFL_X86_64_V3_KERNELS
+  if (four != nullptr && cache != nullptr && cache->located && cache->leaf == cache->cell.leaf &&
+      insideCachedCell(*cache, p_M)) {
+    // The point lies in the leaf whose list the cache holds laid out (it has a list, not empty): what the
+    // path below does for it, without finding the cell and the list again.
+    const double leaf_bound = double(regions.leaf_lower_bound[cache->leaf]) * kBoundShrink;
+    if (leaf_bound * leaf_bound >= best_squared && leaf_bound > 0) return;
+    detail::x86_64_v3::scanPointListCached(p_M, *cache, model.geometry, best_squared, best_triangle, closest);
+    return;
+  }
+#endif
   const Aabb box = regions.bounds();
   const bool inside = !regions.nodes.empty() && (p_M.array() >= box.min.array()).all() &&
                       (p_M.array() <= box.max.array()).all();
@@ -333,9 +345,26 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
   nearestTriangleFast(model.geometry, p_M, best_squared, best_triangle, &closest, four);
 }
 
+// searchNearestFrom's searches, once the hint is known.
 void searchSeeded(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
                   int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four,
-                  detail::PointListCache* cache, int hint_triangle);
+                  detail::PointListCache* cache, int hint_triangle) {
+  const double seed = hint_squared * (1 + 1e-9);
+  if (seed > 0 && seed < best_squared) {
+    double found_squared = seed;
+    int found = -1;
+    Eigen::Vector3d q;
+    // The seed already holds the hint triangle's distance: no need for the Bvh walk to test it again.
+    searchNearest(model, p_M, found_squared, found, q, four, cache);
+    if (found >= 0) {
+      best_squared = found_squared;
+      best_triangle = found;
+      closest = q;
+      return;
+    }
+  }
+  searchNearest(model, p_M, best_squared, best_triangle, closest, four, cache, hint_triangle);
+}
 
 // searchNearest with a hint: `hint_squared` (or infinity), a bound that is likely to be a little above the
 // closest distance, e.g. from the answer for a point nearby (distance being 1-Lipschitz, no more than that
@@ -343,7 +372,8 @@ void searchSeeded(const CflModel& model, double hint_squared, const Eigen::Vecto
 // candidates pass the bounds; the first search finds what the plain one would (the same triangle, ties
 // included: either finds the first triangle of its list or walk at the least distance, and a bound above
 // that distance leaves that triangle in), unless nothing lies below the bound (rounding put it a hair
-// under the closest), and then the plain search runs.
+// under the closest), and then the plain search runs. `hint_triangle` (or -1): a nearby point's closest
+// triangle, whose exact distance tightens the hint.
 void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
                        int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four,
                        detail::PointListCache* cache, int hint_triangle) {
@@ -370,27 +400,6 @@ void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::
   }
   searchSeeded(model, hint_squared, p_M, best_squared, best_triangle, closest, four, cache, hint_triangle);
   if (cache != nullptr) cache->known_triangle = -1;
-}
-
-// searchNearestFrom's searches, once the hint is known.
-void searchSeeded(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
-                  int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four,
-                  detail::PointListCache* cache, int hint_triangle) {
-  const double seed = hint_squared * (1 + 1e-9);
-  if (seed > 0 && seed < best_squared) {
-    double found_squared = seed;
-    int found = -1;
-    Eigen::Vector3d q;
-    // The seed already holds the hint triangle's distance: no need for the Bvh walk to test it again.
-    searchNearest(model, p_M, found_squared, found, q, four, cache);
-    if (found >= 0) {
-      best_squared = found_squared;
-      best_triangle = found;
-      closest = q;
-      return;
-    }
-  }
-  searchNearest(model, p_M, best_squared, best_triangle, closest, four, cache, hint_triangle);
 }
 
 // Which feature of triangle (a, b, c) holds the point closest to p: 0 the face, 1 + e edge e (corners e and

@@ -270,6 +270,8 @@ struct PointListCache {
   /// it too, may skip the tree's descent (see the point query's locateNear).
   RegionCell cell;
   bool located = false;
+  /// How far inside `cell` a point must lie to be in it whatever the rounding (see locateNear).
+  double margin = 0;
   /// A triangle already tested from the point being queried (its hint), or -1, and that test's result from
   /// the kernels of the scan's build: scans take it instead of testing the triangle again
   /// (PendingTriangleTests::known_id).

@@ -186,23 +186,24 @@ void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, do
   }
 }
 
+// Whether p_M lies inside the cache's located cell by more than its margin (see locateNear).
+inline bool insideCachedCell(const detail::PointListCache& cache, const Eigen::Vector3d& p_M) {
+  const RegionCell& cell = cache.cell;
+  return ((p_M - cell.min_corner).array() > cache.margin).all() &&
+         ((cell.min_corner.array() + cell.size) - p_M.array() > cache.margin).all();
+}
+
 // regions.locate(p_M), through the cell the cache's last point was in when p_M lies inside that cell by more
 // than a margin: locate's fixed point and the cell's corner round at about 1e-16 of the coordinates' scale
 // (the grid's extent plus its offset from the origin), so such a point descends to that very cell, and
 // consecutive points of a batch mostly do. Points nearer a face take the descent.
 RegionCell locateNear(const RegionTree& regions, const Eigen::Vector3d& p_M, detail::PointListCache* cache) {
   if (cache == nullptr) return regions.locate(p_M);
-  if (cache->located) {
-    const RegionCell& cell = cache->cell;
-    const int widest = std::max({regions.root_dims[0], regions.root_dims[1], regions.root_dims[2]});
-    const double margin = 1e-12 * (regions.root_size * double(widest) + regions.origin.cwiseAbs().maxCoeff());
-    if (((p_M - cell.min_corner).array() > margin).all() &&
-        ((cell.min_corner.array() + cell.size) - p_M.array() > margin).all()) {
-      return cell;
-    }
-  }
+  if (cache->located && insideCachedCell(*cache, p_M)) return cache->cell;
   cache->cell = regions.locate(p_M);
   cache->located = true;
+  const int widest = std::max({regions.root_dims[0], regions.root_dims[1], regions.root_dims[2]});
+  cache->margin = 1e-12 * (regions.root_size * double(widest) + regions.origin.cwiseAbs().maxCoeff());
   return cache->cell;
 }
 
@@ -213,6 +214,17 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
                    Eigen::Vector3d& closest, detail::PointTriangles4 four, detail::PointListCache* cache,
                    int hint_triangle = -1) {
   const RegionTree& regions = model.regions;
+#if CFL_X86_64_V3_KERNELS
+  if (four != nullptr && cache != nullptr && cache->located && cache->leaf == cache->cell.leaf &&
+      insideCachedCell(*cache, p_M)) {
+    // The point lies in the leaf whose list the cache holds laid out (it has a list, not empty): what the
+    // path below does for it, without finding the cell and the list again.
+    const double leaf_bound = double(regions.leaf_lower_bound[cache->leaf]) * kBoundShrink;
+    if (leaf_bound * leaf_bound >= best_squared && leaf_bound > 0) return;
+    detail::x86_64_v3::scanPointListCached(p_M, *cache, model.geometry, best_squared, best_triangle, closest);
+    return;
+  }
+#endif
   const Aabb box = regions.bounds();
   const bool inside = !regions.nodes.empty() && (p_M.array() >= box.min.array()).all() &&
                       (p_M.array() <= box.max.array()).all();
@@ -266,6 +278,11 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       const double scale = p_M.cwiseAbs().sum();
       detail::PendingTriangleTests tests;
       tests.four = four;
+      if (cache != nullptr) {
+        tests.known_id = cache->known_triangle;
+        tests.known_squared = cache->known_squared;
+        tests.known_closest = cache->known_closest;
+      }
       for (std::uint32_t n = 0; n < length; ++n, ++bounds) {
         // Entries are sorted by bound: once one reaches the best distance, none after it can beat it.
         const double bound = double(*bounds) * unit;
@@ -328,22 +345,17 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
   nearestTriangleFast(model.geometry, p_M, best_squared, best_triangle, &closest, four);
 }
 
-// searchNearest with a hint: `hint_squared` (or infinity), a bound that is likely to be a little above the
-// closest distance, e.g. from the answer for a point nearby (distance being 1-Lipschitz, no more than that
-// point's distance plus the step between them). Barely inflated, it bounds a first search, so that fewer
-// candidates pass the bounds; the first search finds what the plain one would (the same triangle, ties
-// included: either finds the first triangle of its list or walk at the least distance, and a bound above
-// that distance leaves that triangle in), unless nothing lies below the bound (rounding put it a hair
-// under the closest), and then the plain search runs.
-void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
-                       int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four,
-                       detail::PointListCache* cache, int hint_triangle) {
+// searchNearestFrom's searches, once the hint is known.
+void searchSeeded(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
+                  int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four,
+                  detail::PointListCache* cache, int hint_triangle) {
   const double seed = hint_squared * (1 + 1e-9);
   if (seed > 0 && seed < best_squared) {
     double found_squared = seed;
     int found = -1;
     Eigen::Vector3d q;
-    searchNearest(model, p_M, found_squared, found, q, four, cache, hint_triangle);
+    // The seed already holds the hint triangle's distance: no need for the Bvh walk to test it again.
+    searchNearest(model, p_M, found_squared, found, q, four, cache);
     if (found >= 0) {
       best_squared = found_squared;
       best_triangle = found;
@@ -352,6 +364,42 @@ void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::
     }
   }
   searchNearest(model, p_M, best_squared, best_triangle, closest, four, cache, hint_triangle);
+}
+
+// searchNearest with a hint: `hint_squared` (or infinity), a bound that is likely to be a little above the
+// closest distance, e.g. from the answer for a point nearby (distance being 1-Lipschitz, no more than that
+// point's distance plus the step between them). Barely inflated, it bounds a first search, so that fewer
+// candidates pass the bounds; the first search finds what the plain one would (the same triangle, ties
+// included: either finds the first triangle of its list or walk at the least distance, and a bound above
+// that distance leaves that triangle in), unless nothing lies below the bound (rounding put it a hair
+// under the closest), and then the plain search runs. `hint_triangle` (or -1): a nearby point's closest
+// triangle, whose exact distance tightens the hint.
+void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
+                       int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four,
+                       detail::PointListCache* cache, int hint_triangle) {
+  if (hint_triangle >= 0) {
+    // The nearby point's closest triangle, at its exact distance from this point, is mostly this point's
+    // closest too: a bound at (barely above) the answer from the start, so that the scan stops at the first
+    // entry bound reaching the answer and the others' bounds reject more. Its distance is one of those the
+    // search minimizes, so the least is no more.
+    const auto& c = model.geometry.corners[hint_triangle];
+    Eigen::Vector3d q;
+#if CFL_X86_64_V3_KERNELS
+    const double d = four != nullptr ? detail::x86_64_v3::pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q)
+                                     : pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
+#else
+    const double d = pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
+#endif
+    hint_squared = std::min(hint_squared, d);
+    if (cache != nullptr) {
+      // The scans take this result (the kernel of their build's bits) when they reach the triangle.
+      cache->known_triangle = hint_triangle;
+      cache->known_squared = d;
+      cache->known_closest = q;
+    }
+  }
+  searchSeeded(model, hint_squared, p_M, best_squared, best_triangle, closest, four, cache, hint_triangle);
+  if (cache != nullptr) cache->known_triangle = -1;
 }
 
 // Which feature of triangle (a, b, c) holds the point closest to p: 0 the face, 1 + e edge e (corners e and
@@ -552,13 +600,13 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   // Queries positions [begin, end) of the walk; each answer goes to its caller's index.
   auto queryRange = [&](std::size_t begin, std::size_t end) {
     if (ordered) {
-      // Along the curve the previous point is close by: its distance plus the step, distance being
-      // 1-Lipschitz, hints at this one's (a hint never changes an answer, see searchNearestFrom). The
+      // Along the curve the previous point is close by, and so is its closest point: this point's distance
+      // to that point of the mesh bounds its own distance from above, tighter than the previous distance
+      // plus the step (a hint never changes an answer, see searchNearestFrom). The
       // leaves and lists are those of the previous queries, mostly cached: no prefetcher.
       // Consecutive points mostly share a leaf: its list, laid out once, serves them all.
       detail::PointListCache cache;
-      double previous = std::numeric_limits<double>::infinity();
-      Eigen::Vector3d previous_W = Eigen::Vector3d::Zero();
+      Eigen::Vector3d previous_closest_W = Eigen::Vector3d::Zero();
       int previous_triangle = -1;
       // The caller's arrays are read and written out of order: each point and result its own cache miss,
       // fetched ahead.
@@ -572,11 +620,11 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
           prefetchForWrite(reinterpret_cast<const char*>(&results[ahead] + 1) - 1);
         }
         const std::size_t i = ordered[j];
-        const double hint = previous + (points_W[i] - previous_W).norm();
+        const double hint = previous_triangle >= 0 ? (points_W[i] - previous_closest_W).squaredNorm()
+                                                   : std::numeric_limits<double>::infinity();
         results[i] =
-            pointDistance(model, X_WM, X_MW, points_W[i], options, four, &cache, hint * hint, previous_triangle);
-        previous = std::abs(results[i].distance);
-        previous_W = points_W[i];
+            pointDistance(model, X_WM, X_MW, points_W[i], options, four, &cache, hint, previous_triangle);
+        previous_closest_W = results[i].closest_point;
         previous_triangle = results[i].triangle;
       }
       return;

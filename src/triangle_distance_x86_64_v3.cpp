@@ -247,6 +247,7 @@ void scanPointList(const Vec& p, const PointListScan& list, const MeshModel& geo
   const TriangleCorners& corners = geometry.corners;
   PendingTriangleTests tests;
   tests.four = &pointTriangleSquaredDistances4;
+  tests.one = &pointTriangleSquaredDistance;
   double best = std::sqrt(best_squared);
   const PointBoundLanes lanes(p);
   for (std::uint32_t n = 0; n < list.length; n += 4) {
@@ -360,6 +361,10 @@ void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& ge
   const TriangleCorners& corners = geometry.corners;
   PendingTriangleTests tests;
   tests.four = &pointTriangleSquaredDistances4;
+  tests.one = &pointTriangleSquaredDistance;
+  tests.known_id = list.known_triangle;
+  tests.known_squared = list.known_squared;
+  tests.known_closest = list.known_closest;
   double best = std::sqrt(best_squared);
   const PointBoundLanes lanes(p);
   const std::uint32_t blocks = (list.source.length + 3) / 4;
@@ -420,6 +425,7 @@ void nearestTriangleBounded(const MeshModel& model, const Vec& p, double& best_s
   const Eigen::Vector4d* planes = model.leaf_planes.data();
   PendingTriangleTests tests;
   tests.four = &pointTriangleSquaredDistances4;
+  tests.one = &pointTriangleSquaredDistance;
   while (top > 0) {
     const Pending pending = stack[--top];
     if (pending.bound > best_squared) continue;

@@ -114,6 +114,10 @@ inline void nearestTriangleCompact(const MeshModel& model, const Eigen::Vector3d
 using PointTriangles4 = void (*)(const Eigen::Vector3d& p, const std::array<Eigen::Vector3d, 3>* const triangles[4],
                                  double squared[4], Eigen::Vector3d closest[4]);
 
+/// pointTriangleSquaredDistance of some build (same contract, same bits).
+using PointTriangle1 = double (*)(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                  const Eigen::Vector3d& c, Eigen::Vector3d* closest);
+
 /// Exact tests waiting to run four at a time. A scan adds the candidates its bounds let through and runs the
 /// batch when four wait or the scan ends; the batch then accepts, in the order they were added, each
 /// triangle strictly closer than the best so far, as the scan testing them one by one would. Its bounds meanwhile
@@ -122,9 +126,18 @@ using PointTriangles4 = void (*)(const Eigen::Vector3d& p, const std::array<Eige
 /// included, is the one-by-one scan's. Without a kernel each candidate is tested as it comes.
 struct PendingTriangleTests {
   PointTriangles4 four = nullptr;
-  const std::array<Eigen::Vector3d, 3>* triangles[4];
-  int ids[4];
+  /// The one-triangle kernel of the same build as `four` (the same bits as pointTriangleSquaredDistance,
+  /// fewer instructions in the x86-64-v3 build), or nullptr: pointTriangleSquaredDistance.
+  PointTriangle1 one = nullptr;
+  /// A triangle whose test from this point is already done (the point query's hint), or -1, and its result
+  /// as the kernels give it: added, it takes its turn in the order as any other, without a kernel lane.
+  int known_id = -1;
+  double known_squared = 0;
+  Eigen::Vector3d known_closest = Eigen::Vector3d::Zero();
+  const std::array<Eigen::Vector3d, 3>* triangles[5];
+  int ids[5];
   int count = 0;
+  int known_slot = -1;
 
   /// Adds triangle `id` with corners `c`; returns whether the best improved (then best_squared, best_triangle
   /// and *closest are the new best's).
@@ -132,20 +145,72 @@ struct PendingTriangleTests {
            int& best_triangle, Eigen::Vector3d* closest) {
     triangles[count] = &c;
     ids[count] = id;
+    if (id == known_id) known_slot = count;
     ++count;
-    if (four != nullptr && count < 4) return false;
+    if (four != nullptr && count - (known_slot >= 0) < 4) return false;
     return run(p, best_squared, best_triangle, closest);
   }
 
   /// Runs the waiting tests; returns whether the best improved.
   bool run(const Eigen::Vector3d& p, double& best_squared, int& best_triangle, Eigen::Vector3d* closest) {
+    if (known_slot < 0) return runAll(p, best_squared, best_triangle, closest);
+    double squared[5];
+    Eigen::Vector3d q[5];
+    // The tests to run: every waiting one but the known.
+    const std::array<Eigen::Vector3d, 3>* tested[4];
+    int slot[4];
+    int m = 0;
+    for (int k = 0; k < count; ++k) {
+      if (k == known_slot) {
+        squared[k] = known_squared;
+        q[k] = known_closest;
+      } else {
+        tested[m] = triangles[k];
+        slot[m++] = k;
+      }
+    }
+    if (m == 1 || four == nullptr) {
+      // One alone costs less in the one-triangle kernel, whose answer is the same.
+      for (int j = 0; j < m; ++j) {
+        const auto& c = *tested[j];
+        squared[slot[j]] = one != nullptr ? one(p, c[0], c[1], c[2], &q[slot[j]])
+                                          : pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q[slot[j]]);
+      }
+    } else if (m > 1) {
+      for (int j = m; j < 4; ++j) tested[j] = tested[0];
+      double four_squared[4];
+      Eigen::Vector3d four_closest[4];
+      four(p, tested, four_squared, four_closest);
+      for (int j = 0; j < m; ++j) {
+        squared[slot[j]] = four_squared[j];
+        q[slot[j]] = four_closest[j];
+      }
+    }
+    // Accepted in the order added, each strictly closer than the best so far.
+    bool improved = false;
+    for (int k = 0; k < count; ++k) {
+      if (squared[k] < best_squared) {
+        best_squared = squared[k];
+        best_triangle = ids[k];
+        if (closest) *closest = q[k];
+        improved = true;
+      }
+    }
+    count = 0;
+    known_slot = -1;
+    return improved;
+  }
+
+  /// run without a known result among the waiting tests.
+  bool runAll(const Eigen::Vector3d& p, double& best_squared, int& best_triangle, Eigen::Vector3d* closest) {
     bool improved = false;
     if (count == 1 || four == nullptr) {
-      // One alone costs less in the scalar kernel, whose answer is the same.
+      // One alone costs less in the one-triangle kernel, whose answer is the same.
       for (int k = 0; k < count; ++k) {
         const auto& c = *triangles[k];
         Eigen::Vector3d q;
-        const double d = pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q);
+        const double d =
+            one != nullptr ? one(p, c[0], c[1], c[2], &q) : pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q);
         if (d < best_squared) {
           best_squared = d;
           best_triangle = ids[k];
@@ -205,6 +270,14 @@ struct PointListCache {
   /// it too, may skip the tree's descent (see the point query's locateNear).
   RegionCell cell;
   bool located = false;
+  /// How far inside `cell` a point must lie to be in it whatever the rounding (see locateNear).
+  double margin = 0;
+  /// A triangle already tested from the point being queried (its hint), or -1, and that test's result from
+  /// the kernels of the scan's build: scans take it instead of testing the triangle again
+  /// (PendingTriangleTests::known_id).
+  int known_triangle = -1;
+  double known_squared = 0;
+  Eigen::Vector3d known_closest = Eigen::Vector3d::Zero();
 };
 
 /// nearestTriangleCompact with each triangle of a leaf first bounded by its own sphere and plane

@@ -14,11 +14,13 @@
 // |distance| exceeds that. Exit 1 when they do not.
 //
 // Open3D's signs come from casting rays. Where its ray casting finds nothing (checked first: a ray from outside
-// the mesh's box towards a vertex must hit; Debian's libopen3d 0.16 with Embree 3.13 on some machines returns
-// no hit at all, so that ComputeSignedDistance returns unsigned distances), its signs are not compared; the
-// signs of cfl's pseudonormals are then checked against cfl's generalized winding number (an independent
-// method: solid angles, no closest feature) on the first 20000 points of each set. Build-time columns: RaycastingScene::AddTriangles plus its
-// first query (Embree commits the scene lazily) against cfl::buildCflModel.
+// the mesh's box towards a vertex must hit), its signs are not compared. That is the case with Debian 12's
+// packages: Open3D 0.16 casts every ray with mask 0 and Debian's Embree 3.13.5 is built with ray masks on
+// (rtcGetDeviceProperty(RTC_DEVICE_PROPERTY_RAY_MASK_SUPPORTED) is 1), so every ray skips every geometry and
+// ComputeSignedDistance returns unsigned distances. The signs of cfl's pseudonormals are then checked against
+// cfl's generalized winding number (an independent method: solid angles, no closest feature) on the first
+// 20000 points of each set. Build-time columns: RaycastingScene::AddTriangles plus its first query (Embree
+// commits the scene lazily) against cfl::buildCflModel.
 
 #include "cfl/cfl_model.h"
 #include "cfl/error.h"

@@ -13,10 +13,8 @@ namespace {
 // A center for a small sphere holding the points `forEachPoint` visits, starting from `start`: 24 steps of
 // Badoiu and Clarkson's iteration (towards the farthest point by 1 / (i + 1)) on the points extreme along 13
 // directions (axes, face and space diagonals), which nearly always carry the smallest sphere's support. The
-// query's node bounds lose the node's radius, so radius is query time: against the sphere about the box's
-// center, 2.0% to 3.0% fewer instructions per query at 2% of the diagonal on the bunny, the torus knot and
-// wuson, for about twice the Bvh build time (wuson: 7 to 17 ms). Any center gives a true sphere: the
-// caller sizes it on every point.
+// query's node bounds lose the node's radius, so radius is query time, worth a longer Bvh build than the
+// sphere about the box's center takes. Any center gives a true sphere: the caller sizes it on every point.
 template <class ForEachPoint>
 Eigen::Vector3d enclosingCenter(const ForEachPoint& forEachPoint, const Eigen::Vector3d& start) {
   static const Eigen::Vector3d kDirections[13] = {

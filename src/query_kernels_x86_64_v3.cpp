@@ -10,13 +10,8 @@
 // namespace, is compiled for x86-64-v3; and Eigen, configured before the pragma, keeps its 16-byte alignment
 // (that of FCL's and the caller's Isometry3d).
 //
-// Instructions per query at 2% of the diagonal (cachegrind, 100 poses run twice, the difference of a run with
-// two rounds and one): wuson 213,401 in the baseline build, 184,944 in this one (-13.3%); the bunny 170,335
-// and 148,832 (-12.6%). Time, median ratio of the median query over paired rounds (one FCL query before each
-// CFL query, as in `cfl bench`): 0.923 on wuson, 0.910 on the bunny and 0.912 on the rock at 2% (30, 30 and 20
-// rounds), 0.986 on the torus knot at 0.5% (20 rounds). With fused multiply-adds allowed it ran about 5% fewer
-// instructions again (wuson 175,395 against 184,808 in a test build), but its results would differ from the
-// baseline's in the last bits, so from one machine to another, and the triangle kernels' exact arithmetic
+// Fused multiply-adds would save instructions again, but the results would differ from the baseline's in
+// the last bits, so from one machine to another, and the triangle kernels' exact arithmetic
 // (detail/exact_arithmetic.h) needs products rounded as written: the library builds with -ffp-contract=off.
 
 #include "detail/query_kernels.h"

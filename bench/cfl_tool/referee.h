@@ -24,7 +24,7 @@ class Referee {
   Referee(const MeshModel& a, const MeshModel& b, double tolerance) : a_(a), b_(b), tolerance_(tolerance) {}
 
   /// The reference distance at pose X_WB: `obbrss` when every one of `cfl_answers` is within the tolerance
-  /// of it, else brute force's (O(|A| |B|), a few tens of milliseconds for 4k triangles a side).
+  /// of it, else brute force's (O(|A| |B|)).
   double reference(const Eigen::Isometry3d& X_WB, double obbrss, std::initializer_list<double> cfl_answers);
 
   /// Poses where brute force found OBBRSS off by more than the tolerance, and the largest such error.

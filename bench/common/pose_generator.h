@@ -50,8 +50,7 @@ constexpr double kBandTolerance = 0.01;
 /// A draw whose band cannot be reached (already too far apart at s = 0, or not overlapping) is replaced by a
 /// new draw. Deterministic for a given seed, band and pair of meshes: the random stream is seeded from
 /// `seed` and the band's value, so a band gets the same poses whatever other bands are asked for.
-/// Cost: about 10-20 distance evaluations per pose. Throws cfl::Error for band < 0, a non-finite band,
-/// empty bounds, or when 100 draws in a row fail.
+/// Throws cfl::Error for band < 0, a non-finite band, empty bounds, or when 100 draws in a row fail.
 BandPoses generateBandPoses(const Aabb& bounds_a, const Aabb& bounds_b, double band, int count,
                             std::uint64_t seed, const DistanceFunction& distance);
 

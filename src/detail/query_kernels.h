@@ -4,8 +4,7 @@
 // include nothing themselves.
 //
 // Each build is its own translation unit: with both copies of the search in one unit, GCC inlined less into
-// Search::runHierarchical, and the baseline copy ran 5.3% more instructions per query on wuson at 2% of the
-// diagonal (223,775 against 212,599).
+// Search::runHierarchical, and the baseline copy ran more instructions per query.
 
 #include "cfl/cfl_query.h"
 #include "cfl/error.h"
@@ -81,8 +80,8 @@ extern const QueryKernelTable kX86_64_V3QueryKernels;  // query_kernels_x86_64_v
 #if CFL_X86_64_V3_KERNELS
 // The x86-64-v3 build's triangle kernels (triangle_distance_x86_64_v3.cpp), which its search calls: the same
 // contracts as the public functions of cfl/triangle_distance.h. In a translation unit of their own, as the
-// public ones are: in the search's unit they changed how GCC inlined the search itself (5% more instructions
-// per query on wuson at 2% of the diagonal, in Search::runHierarchical).
+// public ones are: in the search's unit they changed how GCC inlined the search itself
+// (Search::runHierarchical), for more instructions per query.
 namespace cfl::detail::x86_64_v3 {
 double pointTriangleSquaredDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                                     const Eigen::Vector3d& c, Eigen::Vector3d* closest);

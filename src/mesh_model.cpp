@@ -20,8 +20,8 @@ double reachFrom(const std::array<Eigen::Vector3d, 3>& c, const Eigen::Vector3d&
 // The smallest sphere holding the triangle (center, radius): about the longest edge's midpoint when the
 // triangle is right or obtuse, about the circumcenter otherwise; the centroid's sphere whenever rounding
 // makes that one no smaller. The query's reach test is threshold + both radii, with a threshold about one
-// triangle across at short range, so the radii weigh: against the centroid's sphere, 4.7% fewer
-// instructions per query on wuson at 2% of the diagonal (bunny 1.9% at 0.5%, 1.0% at 2%; torus knot 0.5%).
+// triangle across at short range, so the radii weigh: the smallest sphere, not the centroid's, is what keeps
+// the test tight (docs/performance.md has the measurement).
 Eigen::Vector4d boundingSphere(const std::array<Eigen::Vector3d, 3>& c) {
   Eigen::Vector3d center = (c[0] + c[1] + c[2]) / 3.0;
   double radius = reachFrom(c, center);

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <climits>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <random>
@@ -1011,6 +1012,96 @@ std::int64_t checkCachedFrames(const Shape& a, const Shape& b, const std::vector
     }
   }
   return cache.reused - reused_before;
+}
+
+// A few small triangles of B skimming finely tessellated surfaces of A (a flat plate, a wavy sheet): the
+// adaptive regions' lists there are long, and consecutive triangles of B (in the search's order) meet the
+// same leaves, or overlapping sets of them, with list prefixes that differ in their lists, their count or
+// their lengths. The list scan reuses the previous triangle's merged candidates only when its prefixes are
+// the same; reusing them otherwise tests a triangle of B against the wrong triangles of A, and brute force
+// disagrees wherever that triangle holds the answer. Through a DistanceCache, every triangle of B counts:
+// a scan of the wrong candidates leaves pairs out of the certificate. (A rule comparing the lists but not
+// their lengths would pass, and rightly: within a query the threshold only falls, so a list's prefix only
+// shortens, and the stale merged set holds the new prefixes' triangles.)
+TEST(ComputeDistance, SmallMeshesSkimmingTessellatedSurfacesMatchBruteForce) {
+  struct Surface {
+    std::unique_ptr<Shape> shape;
+    std::function<double(double, double)> height;  // of the face B skims, A's frame
+  };
+  Surface surfaces[] = {
+      {makeShape("tessellated_plate", test::makeThinPlate(1.0, 0.05, 16), 0), [](double, double) { return 0.025; }},
+      {makeShape("tessellated_wavy_sheet", test::makeWavySheet(1.0, 0.15, 24), 0),
+       [](double x, double y) { return 0.15 * std::sin(x) * std::cos(y); }},
+  };
+  test::Rng rng(8080);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  Failures failures;
+  int poses = 0, skims = 0, certified = 0;
+  for (const Surface& surface : surfaces) {
+    const Shape& a = *surface.shape;
+    for (int mesh = 0; mesh < 16; ++mesh) {
+      const int triangles = 2 + mesh % 3;
+      const auto b =
+          mesh % 2 == 0
+              ? makeShape("soup of " + std::to_string(triangles),
+                          test::makeTriangleSoup(triangles, 500 + mesh, 0.06, 0.04 + 0.01 * (mesh % 4)), 4)
+              : makeShape("small sheet", test::makeWavySheet(0.04 + 0.02 * (mesh % 5), 0.01, 2 + mesh % 3), 4);
+      for (int n = 0; n < 50; ++n) {
+        // B's center above (or below) a random point of the face, at most a few of its quads away.
+        Pose pose{Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity(), "skimming " + a.name};
+        pose.X_WA.linear() = test::randomRotation(rng);
+        const double x = 0.95 * unit(rng), y = 0.95 * unit(rng);
+        const Eigen::Vector3d over(x, y, surface.height(x, y) + 0.06 * (unit(rng) + 0.9));
+        pose.X_WB.linear() = pose.X_WA.linear() * test::randomRotation(rng);
+        pose.X_WB.translation() = pose.X_WA.linear() * over;
+        const DistanceResult truth = bruteForceDistance(a.model, pose.X_WA, b->model, pose.X_WB);
+        ++poses;
+        ++skims;
+        checkResult(computeDistance(a.cfl, pose.X_WA, b->model, pose.X_WB), truth, a, *b, pose, b->name, failures);
+        // A small step on, the cache searches with a margin and lists every pair its scans meet within it:
+        // the certificate's checks then see every triangle of B's scan, not only the answer's.
+        DistanceCache cache;
+        checkCachedFrames(a, *b, smoothMotion(a, *b, pose, 2, 2e-4, 1e-3, false, rng), cache, b->name + ", cached",
+                          failures);
+        certified += cache.certified;
+      }
+    }
+  }
+  // A row of copies of one small triangle over the plate, two of its quads apart and at heights a hair
+  // apart: their leaves' lists differ in their triangles but often not in their prefixes' lengths, and
+  // which copy the search scans first is a toss-up for the bounds, so that the closest copy is often
+  // scanned after another one.
+  const Shape& plate = *surfaces[0].shape;
+  for (int n = 0; n < 1500; ++n) {
+    Shape row;
+    row.name = "row of copies";
+    const Eigen::Matrix3d tilt =
+        Eigen::AngleAxisd(0.3 * unit(rng), Eigen::Vector3d(unit(rng), unit(rng), unit(rng)).normalized())
+            .toRotationMatrix();
+    const Eigen::Vector3d corner(0.8 * unit(rng), 0.8 * unit(rng), 0.025 + 0.02 * (unit(rng) + 1.1));
+    const Eigen::Vector3d along = n % 2 == 0 ? Eigen::Vector3d(0.25, 0, 0) : Eigen::Vector3d(0, 0.25, 0);
+    for (int copy = 0; copy < 4; ++copy) {
+      const Eigen::Vector3d at = corner + (copy - 1.5) * along + Eigen::Vector3d(0, 0, 1e-4 * unit(rng));
+      const int first = static_cast<int>(row.mesh.vertices.size());
+      for (const Eigen::Vector3d& v : {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0.05, 0, 0),
+                                       Eigen::Vector3d(0, 0.05, 0)}) {
+        row.mesh.vertices.push_back(at + tilt * v);
+      }
+      row.mesh.triangles.push_back({first, first + 1, first + 2});
+    }
+    row.model = makeMeshModel(row.mesh);
+    row.diagonal = row.model.bounds.diagonal();
+    Pose pose{Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity(), "row over the plate"};
+    pose.X_WA.linear() = test::randomRotation(rng);
+    pose.X_WB = pose.X_WA;
+    const DistanceResult truth = bruteForceDistance(plate.model, pose.X_WA, row.model, pose.X_WB);
+    ++poses;
+    checkResult(computeDistance(plate.cfl, pose.X_WA, row.model, pose.X_WB), truth, plate, row, pose, row.name,
+                failures);
+  }
+  EXPECT_EQ(failures.count(), 0) << "of " << poses << " poses";
+  // Most second frames must have certified, or the certificate checks above saw little.
+  EXPECT_GE(certified, skims / 2) << certified << " of " << skims << " certified";
 }
 
 // Two layouts where a voxel's list must keep triangles that nearly tie or that dwarf the voxel: A made of two

@@ -186,7 +186,32 @@ struct PendingTriangleTests {
         q[slot[j]] = four_closest[j];
       }
     }
-    // Accepted in the order added, each strictly closer than the best so far.
+    known_slot = -1;
+    return accept(squared, q, best_squared, best_triangle, closest);
+  }
+
+  /// run without a known result among the waiting tests.
+  bool runAll(const Eigen::Vector3d& p, double& best_squared, int& best_triangle, Eigen::Vector3d* closest) {
+    double squared[4];
+    Eigen::Vector3d q[4];
+    if (count == 1 || four == nullptr) {
+      // One alone costs less in the one-triangle kernel, whose answer is the same.
+      for (int k = 0; k < count; ++k) {
+        const auto& c = *triangles[k];
+        squared[k] =
+            one != nullptr ? one(p, c[0], c[1], c[2], &q[k]) : pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q[k]);
+      }
+    } else if (count > 1) {
+      for (int k = count; k < 4; ++k) triangles[k] = triangles[0];
+      four(p, triangles, squared, q);
+    }
+    return accept(squared, q, best_squared, best_triangle, closest);
+  }
+
+  /// Accepts the `count` waiting results in the order added, each strictly closer than the best so far, and
+  /// empties the batch; returns whether the best improved.
+  bool accept(const double* squared, const Eigen::Vector3d* q, double& best_squared, int& best_triangle,
+              Eigen::Vector3d* closest) {
     bool improved = false;
     for (int k = 0; k < count; ++k) {
       if (squared[k] < best_squared) {
@@ -194,42 +219,6 @@ struct PendingTriangleTests {
         best_triangle = ids[k];
         if (closest) *closest = q[k];
         improved = true;
-      }
-    }
-    count = 0;
-    known_slot = -1;
-    return improved;
-  }
-
-  /// run without a known result among the waiting tests.
-  bool runAll(const Eigen::Vector3d& p, double& best_squared, int& best_triangle, Eigen::Vector3d* closest) {
-    bool improved = false;
-    if (count == 1 || four == nullptr) {
-      // One alone costs less in the one-triangle kernel, whose answer is the same.
-      for (int k = 0; k < count; ++k) {
-        const auto& c = *triangles[k];
-        Eigen::Vector3d q;
-        const double d =
-            one != nullptr ? one(p, c[0], c[1], c[2], &q) : pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q);
-        if (d < best_squared) {
-          best_squared = d;
-          best_triangle = ids[k];
-          if (closest) *closest = q;
-          improved = true;
-        }
-      }
-    } else if (count > 1) {
-      for (int k = count; k < 4; ++k) triangles[k] = triangles[0];
-      double squared[4];
-      Eigen::Vector3d q[4];
-      four(p, triangles, squared, q);
-      for (int k = 0; k < count; ++k) {
-        if (squared[k] < best_squared) {
-          best_squared = squared[k];
-          best_triangle = ids[k];
-          if (closest) *closest = q[k];
-          improved = true;
-        }
       }
     }
     count = 0;

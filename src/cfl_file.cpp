@@ -13,7 +13,9 @@
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <ostream>
 #include <sstream>
+#include <stdexcept>
 #include <thread>
 #include <type_traits>
 
@@ -112,20 +114,30 @@ std::string tagName(std::uint32_t tag) {
   return name;
 }
 
-// Appends little-endian values to a buffer whose final size is known in advance.
+// Extends `crc`, the CRC-32 of some bytes (0 for none), to that of those bytes followed by `data`.
+std::uint32_t crc32Update(std::uint32_t crc, const unsigned char* data, std::size_t size) {
+  // zlib takes lengths as uInt (32 bits), so a larger buffer goes in slices.
+  uLong value = crc;
+  constexpr std::size_t kSlice = std::size_t(1) << 30;
+  while (size > 0) {
+    const std::size_t slice = std::min(size, kSlice);
+    value = ::crc32(value, data, static_cast<uInt>(slice));
+    data += slice;
+    size -= slice;
+  }
+  return static_cast<std::uint32_t>(value);
+}
+
+// Streams little-endian values to `sink`, a callable taking (const unsigned char*, std::size_t), through a
+// small buffer, so that no copy of the whole file is ever made: the sink sees the file as a few large
+// pieces (on a little-endian host, arrays go to it straight from the model's memory) and buffer-sized
+// chunks of converted values. Call finish() to pass on what is buffered.
+template <typename Sink>
 class Writer {
  public:
-  explicit Writer(std::size_t capacity) { bytes_.reserve(capacity); }
-  void u32(std::uint32_t value) {
-    unsigned char p[4];
-    storeU32(p, value);
-    bytes_.insert(bytes_.end(), p, p + 4);
-  }
-  void u64(std::uint64_t value) {
-    unsigned char p[8];
-    storeU64(p, value);
-    bytes_.insert(bytes_.end(), p, p + 8);
-  }
+  explicit Writer(Sink& sink) : sink_(sink), buffer_(kBufferSize) {}
+  void u32(std::uint32_t value) { storeU32(room(4), value); }
+  void u64(std::uint64_t value) { storeU64(room(8), value); }
   void i32(std::int32_t value) { u32(static_cast<std::uint32_t>(value)); }
   void i64(std::int64_t value) { u64(static_cast<std::uint64_t>(value)); }
   void f64(double value) {
@@ -133,13 +145,22 @@ class Writer {
     std::memcpy(&bits, &value, 8);
     u64(bits);
   }
+  void bytes(const unsigned char* data, std::size_t count) {
+    if (count <= kBufferSize - used_) {
+      std::memcpy(buffer_.data() + used_, data, count);
+      used_ += count;
+      return;
+    }
+    finish();
+    sink_(data, count);
+    written_ += count;
+  }
   // Integers and floats of 1, 2, 4 or 8 bytes, or blocks of eight corner distances, each stored as its
   // little-endian bit pattern.
   template <typename T>
   void array(const std::vector<T>& values) {
     if constexpr (kBulkCopy || sizeof(T) == 1) {
-      const auto* p = reinterpret_cast<const unsigned char*>(values.data());
-      bytes_.insert(bytes_.end(), p, p + sizeof(T) * values.size());
+      bytes(reinterpret_cast<const unsigned char*>(values.data()), sizeof(T) * values.size());
     } else {
       for (const T& value : values) element(value);
     }
@@ -149,16 +170,32 @@ class Writer {
     u32(0);
     u64(length);
   }
-  std::vector<unsigned char>& bytes() { return bytes_; }
+  void finish() {
+    if (used_ == 0) return;
+    sink_(buffer_.data(), used_);
+    written_ += used_;
+    used_ = 0;
+  }
+  // Bytes passed to the sink so far, and those still buffered.
+  std::uint64_t size() const { return written_ + used_; }
 
  private:
+  static constexpr std::size_t kBufferSize = std::size_t(1) << 16;
+
+  unsigned char* room(std::size_t count) {
+    if (kBufferSize - used_ < count) finish();
+    unsigned char* p = buffer_.data() + used_;
+    used_ += count;
+    return p;
+  }
   template <typename T>
   void element(const T& value) {
     if constexpr (std::is_same_v<T, CornerDistances>) {
       for (std::uint16_t distance : value) element(distance);
     } else if constexpr (sizeof(T) == 2) {
-      bytes_.push_back(static_cast<unsigned char>(value & 0xffu));
-      bytes_.push_back(static_cast<unsigned char>(value >> 8));
+      unsigned char* p = room(2);
+      p[0] = static_cast<unsigned char>(value & 0xffu);
+      p[1] = static_cast<unsigned char>(value >> 8);
     } else if constexpr (sizeof(T) == 4) {
       std::uint32_t bits;
       std::memcpy(&bits, &value, 4);
@@ -170,7 +207,10 @@ class Writer {
       u64(bits);
     }
   }
-  std::vector<unsigned char> bytes_;
+  Sink& sink_;
+  std::vector<unsigned char> buffer_;
+  std::size_t used_ = 0;
+  std::uint64_t written_ = 0;
 };
 
 // Reads little-endian values from [data, data + size), throwing a message that names the file and the
@@ -501,18 +541,7 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
 
 namespace detail {
 
-std::uint32_t crc32(const unsigned char* data, std::size_t size) {
-  // zlib takes lengths as uInt (32 bits), so a larger buffer goes in slices.
-  uLong crc = ::crc32(0L, Z_NULL, 0);
-  constexpr std::size_t kSlice = std::size_t(1) << 30;
-  while (size > 0) {
-    const std::size_t slice = std::min(size, kSlice);
-    crc = ::crc32(crc, data, static_cast<uInt>(slice));
-    data += slice;
-    size -= slice;
-  }
-  return static_cast<std::uint32_t>(crc);
-}
+std::uint32_t crc32(const unsigned char* data, std::size_t size) { return crc32Update(0, data, size); }
 
 void resealCflBuffer(unsigned char* data, std::size_t size) {
   if (size < kHeaderSize) return;
@@ -522,34 +551,34 @@ void resealCflBuffer(unsigned char* data, std::size_t size) {
 
 }  // namespace detail
 
-std::vector<unsigned char> serializeCflModel(const CflModel& model) {
+namespace {
+
+// The payload's size, known before any of it is written because the header, which comes first, holds it.
+// Validates the model first, so that nothing is written that the loader would refuse.
+std::uint64_t checkedPayloadSize(const CflModel& model) {
   validateMesh(model.geometry.mesh);
   validateModelStructure(model, "cannot save CFL model");
   const TriangleMesh& mesh = model.geometry.mesh;
   const RegionTree& tree = model.regions;
-  const BuildStatistics& s = model.statistics;
-
   const std::uint64_t mesh_size = 16 + 24 * mesh.vertices.size() + 12 * mesh.triangles.size();
   const std::uint64_t node_size = 8 + 4 * tree.nodes.size();
   const std::uint64_t leaf_size = 8 + kLeafRecordSize * tree.leaf_list.size();
-  // The file keeps every id in 4 bytes, whatever RegionTree's encoding in memory.
-  const std::vector<std::int32_t> list_triangles = tree.listTriangles();
-  const std::uint64_t list_size = 16 + 4 * (tree.list_offsets.size() + list_triangles.size());
+  // One 4-byte id per entry, whatever RegionTree's encoding in memory; there are as many entries as bounds.
+  const std::uint64_t list_size = 16 + 4 * (tree.list_offsets.size() + tree.list_entry_bounds.size());
   const std::uint64_t entry_bounds_size = 8 + tree.list_entry_bounds.size();
-  const std::uint64_t statistics_size = kStatisticsFixedSize + 8 * s.leaves_per_depth.size();
-  const std::uint64_t payload_size = 7 * kSectionHeaderSize + mesh_size + kTreeSectionSize + node_size + leaf_size +
-                                     list_size + entry_bounds_size + statistics_size;
+  const std::uint64_t statistics_size = kStatisticsFixedSize + 8 * model.statistics.leaves_per_depth.size();
+  return 7 * kSectionHeaderSize + mesh_size + kTreeSectionSize + node_size + leaf_size + list_size +
+         entry_bounds_size + statistics_size;
+}
 
-  Writer out(kHeaderSize + payload_size);
-  auto& bytes = out.bytes();
-  bytes.insert(bytes.end(), kMagic.begin(), kMagic.end());
-  out.u32(kEndianMarker);
-  out.u32(kCflFileVersion);
-  out.u64(payload_size);
-  out.u32(0);  // Both checksums are filled in once the payload is written.
-  out.u32(0);
+// Writes the payload's sections in file order (checkedPayloadSize sizes them the same way).
+template <typename Sink>
+void writePayload(const CflModel& model, Writer<Sink>& out) {
+  const TriangleMesh& mesh = model.geometry.mesh;
+  const RegionTree& tree = model.regions;
+  const BuildStatistics& s = model.statistics;
 
-  out.section(kTagMesh, mesh_size);
+  out.section(kTagMesh, 16 + 24 * mesh.vertices.size() + 12 * mesh.triangles.size());
   out.u64(mesh.vertices.size());
   out.u64(mesh.triangles.size());
   for (const Eigen::Vector3d& p : mesh.vertices) {
@@ -568,27 +597,31 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
   out.u32(model.topology_culling ? 1u : 0u);
   out.f64(tree.corner_distance_unit);
 
-  out.section(kTagNodes, node_size);
+  out.section(kTagNodes, 8 + 4 * tree.nodes.size());
   out.u64(tree.nodes.size());
   out.array(tree.nodes);
 
-  out.section(kTagLeaves, leaf_size);
+  out.section(kTagLeaves, 8 + kLeafRecordSize * tree.leaf_list.size());
   out.u64(tree.leaf_list.size());
   out.array(tree.leaf_list);
   out.array(tree.leaf_lower_bound);
   out.array(tree.leaf_corner_distance);
 
-  out.section(kTagList, list_size);
+  // The ids are decoded list by list straight into the output, never into an array of them all.
+  const std::uint64_t entry_count = tree.list_entry_bounds.size();
+  out.section(kTagList, 16 + 4 * (tree.list_offsets.size() + entry_count));
   out.u64(tree.list_offsets.size());
-  out.u64(list_triangles.size());
+  out.u64(entry_count);
   out.array(tree.list_offsets);
-  out.array(list_triangles);
+  for (std::uint32_t list = 0; list < tree.listCount(); ++list) {
+    tree.forEachListTriangle(list, tree.listLength(list), [&](std::ptrdiff_t, std::int32_t id) { out.i32(id); });
+  }
 
-  out.section(kTagEntryBounds, entry_bounds_size);
-  out.u64(tree.list_entry_bounds.size());
+  out.section(kTagEntryBounds, 8 + entry_count);
+  out.u64(entry_count);
   out.array(tree.list_entry_bounds);
 
-  out.section(kTagStatistics, statistics_size);
+  out.section(kTagStatistics, kStatisticsFixedSize + 8 * s.leaves_per_depth.size());
   out.i64(s.resolution);
   out.i64(s.voxel_count);
   out.i64(s.leaves_without_list);
@@ -600,10 +633,71 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
   out.u32(s.coarsened ? 1u : 0u);
   out.u64(s.leaves_per_depth.size());
   out.array(s.leaves_per_depth);
+  out.finish();
+}
 
-  if (bytes.size() != kHeaderSize + payload_size) throw std::logic_error("serializeCflModel: size bookkeeping is off");
-  detail::resealCflBuffer(bytes.data(), bytes.size());
-  return std::move(bytes);
+void checkWrittenSize(std::uint64_t written, std::uint64_t payload_size) {
+  if (written != payload_size) throw std::logic_error("CFL file writer: size bookkeeping is off");
+}
+
+std::array<unsigned char, kHeaderSize> fileHeader(std::uint64_t payload_size, std::uint32_t payload_crc) {
+  std::array<unsigned char, kHeaderSize> header{};
+  std::memcpy(header.data(), kMagic.data(), kMagic.size());
+  storeU32(header.data() + 8, kEndianMarker);
+  storeU32(header.data() + 12, kCflFileVersion);
+  storeU64(header.data() + 16, payload_size);
+  storeU32(header.data() + 24, payload_crc);
+  storeU32(header.data() + 28, detail::crc32(header.data(), 28));
+  return header;
+}
+
+// writeCflModel once the model is validated and its payload sized. The header's payload checksum precedes
+// the payload, so a first pass over the model computes it without writing anything; the second writes the
+// file once, in order, so the stream is never sought (pipes work) and no copy of the file is held.
+void writeValidatedCflModel(const CflModel& model, std::uint64_t payload_size, std::ostream& stream) {
+  std::uint32_t payload_crc = 0;
+  const auto checksum = [&](const unsigned char* data, std::size_t count) {
+    payload_crc = crc32Update(payload_crc, data, count);
+  };
+  Writer<decltype(checksum)> checksum_pass(checksum);
+  writePayload(model, checksum_pass);
+  checkWrittenSize(checksum_pass.size(), payload_size);
+
+  std::uint64_t written = 0;
+  const auto put = [&](const unsigned char* data, std::size_t count) {
+    if (!stream.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(count))) {
+      throw Error("writing a CFL model: the stream failed after " + std::to_string(written) + " of " +
+                  std::to_string(kHeaderSize + payload_size) + " bytes");
+    }
+    written += count;
+  };
+  const std::array<unsigned char, kHeaderSize> header = fileHeader(payload_size, payload_crc);
+  put(header.data(), header.size());
+  Writer<decltype(put)> out(put);
+  writePayload(model, out);
+  checkWrittenSize(out.size(), payload_size);
+}
+
+}  // namespace
+
+std::vector<unsigned char> serializeCflModel(const CflModel& model) {
+  const std::uint64_t payload_size = checkedPayloadSize(model);
+  std::vector<unsigned char> bytes;
+  bytes.reserve(kHeaderSize + payload_size);
+  const auto append = [&](const unsigned char* data, std::size_t count) {
+    bytes.insert(bytes.end(), data, data + count);
+  };
+  const std::array<unsigned char, kHeaderSize> header = fileHeader(payload_size, 0);
+  append(header.data(), header.size());
+  Writer<decltype(append)> out(append);
+  writePayload(model, out);
+  checkWrittenSize(out.size(), payload_size);
+  detail::resealCflBuffer(bytes.data(), bytes.size());  // the payload checksum, now that the payload is here
+  return bytes;
+}
+
+void writeCflModel(const CflModel& model, std::ostream& stream) {
+  writeValidatedCflModel(model, checkedPayloadSize(model), stream);
 }
 
 namespace {
@@ -808,7 +902,9 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
 }
 
 void saveCflModel(const CflModel& model, const std::string& path) {
-  const std::vector<unsigned char> bytes = serializeCflModel(model);
+  // Validated before any file is created, so that a model the loader would refuse leaves no trace.
+  const std::uint64_t payload_size = checkedPayloadSize(model);
+  const std::uint64_t file_size = kHeaderSize + payload_size;
   // A unique temporary name per process, thread and call, so concurrent writers never share one.
   static std::atomic<unsigned> counter{0};
   std::ostringstream temporary;
@@ -821,12 +917,23 @@ void saveCflModel(const CflModel& model, const std::string& path) {
   {
     std::ofstream file(temporary_path, std::ios::binary | std::ios::trunc);
     if (!file) throw Error(path + ": cannot open " + temporary_path + " for writing: " + std::strerror(errno));
-    file.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-    file.close();
-    if (!file) {
-      const std::string reason = std::strerror(errno);
+    bool failed = false;
+    try {
+      writeValidatedCflModel(model, payload_size, file);
+      file.close();
+      failed = !file;
+    } catch (const Error&) {
+      failed = true;  // a write failed (the model is valid by now); errno says why
+    } catch (...) {
+      file.close();
       std::remove(temporary_path.c_str());
-      throw Error(path + ": writing " + std::to_string(bytes.size()) + " bytes failed: " + reason);
+      throw;
+    }
+    if (failed) {
+      const std::string reason = std::strerror(errno);
+      file.close();
+      std::remove(temporary_path.c_str());
+      throw Error(path + ": writing " + std::to_string(file_size) + " bytes failed: " + reason);
     }
   }
   if (std::rename(temporary_path.c_str(), path.c_str()) != 0) {

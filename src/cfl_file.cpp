@@ -81,7 +81,9 @@ static_assert(std::is_same_v<decltype(RegionTree::leaf_corner_distance)::value_t
 std::uint32_t loadU32(const unsigned char* p) {
   return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
 }
-std::uint64_t loadU64(const unsigned char* p) { return std::uint64_t(loadU32(p)) | std::uint64_t(loadU32(p + 4)) << 32; }
+std::uint64_t loadU64(const unsigned char* p) {
+  return std::uint64_t(loadU32(p)) | std::uint64_t(loadU32(p + 4)) << 32;
+}
 void storeU32(unsigned char* p, std::uint32_t value) {
   for (int i = 0; i < 4; ++i) p[i] = static_cast<unsigned char>(value >> (8 * i));
 }
@@ -370,12 +372,14 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
   }
   for (int axis = 0; axis < 3; ++axis) {
     if (tree.root_dims[axis] < 1) {
-      fail("regions root_dims[" + std::to_string(axis) + "] is " + std::to_string(tree.root_dims[axis]) + ", must be >= 1");
+      fail("regions root_dims[" + std::to_string(axis) + "] is " + std::to_string(tree.root_dims[axis]) +
+           ", must be >= 1");
     }
   }
   if (!tree.bounds().max.allFinite()) fail("regions far corner is not finite (root_size times root_dims overflows)");
   if (tree.max_depth < 0 || tree.max_depth > kMaxTreeDepth) {
-    fail("regions max_depth is " + std::to_string(tree.max_depth) + ", must be in [0, " + std::to_string(kMaxTreeDepth) + "]");
+    fail("regions max_depth is " + std::to_string(tree.max_depth) + ", must be in [0, " +
+         std::to_string(kMaxTreeDepth) + "]");
   }
   // A power of two (frexp's mantissa exactly 1/2) in [kFinestCornerDistanceUnit, 1]: the query multiplies
   // by it and relies on the product being exact.
@@ -392,8 +396,12 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
   // The nodes. Node and leaf indices are 31-bit (the top bit marks a leaf), which also keeps `v + 8` below.
   const std::uint64_t node_count = tree.nodes.size();
   const std::uint64_t leaf_count = tree.leaf_list.size();
-  if (node_count >= RegionTree::kLeafBit) fail(std::to_string(node_count) + " nodes, more than 31-bit indices can name");
-  if (leaf_count >= RegionTree::kLeafBit) fail(std::to_string(leaf_count) + " leaves, more than 31-bit indices can name");
+  if (node_count >= RegionTree::kLeafBit) {
+    fail(std::to_string(node_count) + " nodes, more than 31-bit indices can name");
+  }
+  if (leaf_count >= RegionTree::kLeafBit) {
+    fail(std::to_string(leaf_count) + " leaves, more than 31-bit indices can name");
+  }
   // The root cells come first among the nodes, so there must be at least as many nodes as root cells,
   // checked by division so that absurd dims (three ints multiply to 2^93) never overflow; only then is
   // rootCount() safe to call.
@@ -434,7 +442,9 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
         fail("node " + std::to_string(n) + " is leaf " + std::to_string(leaf) + ", out of range [0, " +
              std::to_string(leaf_count) + ")");
       }
-      if (leaf_seen[leaf]) fail("leaf " + std::to_string(leaf) + " is referenced twice (again by node " + std::to_string(n) + ")");
+      if (leaf_seen[leaf]) {
+        fail("leaf " + std::to_string(leaf) + " is referenced twice (again by node " + std::to_string(n) + ")");
+      }
       leaf_seen[leaf] = true;
       if (leaves_per_depth.size() <= std::size_t(d)) leaves_per_depth.resize(d + 1, 0);
       ++leaves_per_depth[d];
@@ -445,8 +455,8 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
            ", not after itself (children follow their parent; a node pointing to itself or back would loop)");
     }
     if (value < root_count) {
-      fail("node " + std::to_string(n) + " points to children at node " + std::to_string(value) + ", a root cell (there are " +
-           std::to_string(root_count) + ")");
+      fail("node " + std::to_string(n) + " points to children at node " + std::to_string(value) +
+           ", a root cell (there are " + std::to_string(root_count) + ")");
     }
     if (std::uint64_t(value) + 8 > node_count) {
       fail("node " + std::to_string(n) + " points to children at nodes " + std::to_string(value) + " to " +
@@ -490,9 +500,10 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
                       tree.list_entry_bounds.size(), fail);
   for (std::size_t list = 0; list < list_count; ++list) {
     const std::int32_t base = tree.listBase(std::uint32_t(list));
-    if (base < 0 && std::uint64_t(std::uint32_t(~base)) + tree.listLength(std::uint32_t(list)) > tree.list_high_ids.size()) {
-      fail("list " + std::to_string(list) + " reads list_high_ids past its " + std::to_string(tree.list_high_ids.size()) +
-           " entries");
+    if (base < 0 &&
+        std::uint64_t(std::uint32_t(~base)) + tree.listLength(std::uint32_t(list)) > tree.list_high_ids.size()) {
+      fail("list " + std::to_string(list) + " reads list_high_ids past its " +
+           std::to_string(tree.list_high_ids.size()) + " entries");
     }
   }
   validateListContents(offsets, [&](std::uint32_t list, std::uint32_t n) { return tree.listTriangle(list, n); },
@@ -509,7 +520,8 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
     }
     const float lower = tree.leaf_lower_bound[leaf];
     if (!std::isfinite(lower) || lower < 0) {
-      fail("leaf_lower_bound of leaf " + std::to_string(leaf) + " is " + numberText(lower) + ", must be finite and >= 0");
+      fail("leaf_lower_bound of leaf " + std::to_string(leaf) + " is " + numberText(lower) +
+           ", must be finite and >= 0");
     }
   }
 
@@ -721,14 +733,17 @@ std::uint64_t checkHeader(const unsigned char* data, std::size_t available, std:
   }
   const std::uint32_t marker = loadU32(data + 8);
   if (marker != kEndianMarker) {
-    if (marker == 0x04030201u) fail("written in big-endian byte order (marker bytes 01 02 03 04); files are little-endian");
+    if (marker == 0x04030201u) {
+      fail("written in big-endian byte order (marker bytes 01 02 03 04); files are little-endian");
+    }
     fail("bad endianness marker (bytes " + hexBytes(data + 8, 4) + ", expected 04 03 02 01)");
   }
   const std::uint32_t version = loadU32(data + 12);
   // Versions 1 and 2 stored a uniform grid, which the regions no longer are; the build is the only way
   // from one to the other, so no loader for them is kept.
   if (version == 1 || version == 2) {
-    fail("a version-" + std::to_string(version) + " CFL file (uniform grid) from an earlier cfl: rebuild it with `cfl build`");
+    fail("a version-" + std::to_string(version) +
+         " CFL file (uniform grid) from an earlier cfl: rebuild it with `cfl build`");
   }
   if (version == 3) {
     fail("a version-3 CFL file (float corner distances) from an earlier cfl: rebuild it with `cfl build`");
@@ -881,16 +896,19 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
   }
   // The lists as stored, checked before RegionTree::appendList encodes them (it needs ids >= 0).
   {
-    validateListOffsets(tree.list_offsets, list_triangles.size(), "list_triangles", tree.list_entry_bounds.size(), fail);
+    validateListOffsets(tree.list_offsets, list_triangles.size(), "list_triangles", tree.list_entry_bounds.size(),
+                        fail);
     validateListContents(
-        tree.list_offsets, [&](std::uint32_t list, std::uint32_t n) { return list_triangles[tree.list_offsets[list] + n]; },
+        tree.list_offsets,
+        [&](std::uint32_t list, std::uint32_t n) { return list_triangles[tree.list_offsets[list] + n]; },
         tree.list_entry_bounds, model.geometry.mesh.triangles.size(), fail);
     const std::vector<std::uint32_t> offsets = std::move(tree.list_offsets);
     const std::vector<std::uint8_t> bounds = std::move(tree.list_entry_bounds);
     tree.list_offsets.assign(1, 0);
     tree.list_entry_bounds.clear();
     for (std::size_t list = 0; list + 1 < offsets.size(); ++list) {
-      tree.appendList(list_triangles.data() + offsets[list], bounds.data() + offsets[list], offsets[list + 1] - offsets[list]);
+      tree.appendList(list_triangles.data() + offsets[list], bounds.data() + offsets[list],
+                      offsets[list + 1] - offsets[list]);
     }
     tree.list_offsets.shrink_to_fit();
     tree.list_entry_ids.shrink_to_fit();

@@ -77,7 +77,8 @@ void runBuild(benchmark::State& state, const cfl::TriangleMesh& mesh) {
 }
 
 void BM_CflBuild(benchmark::State& state) { runBuild(state, benchMesh()); }
-BENCHMARK(BM_CflBuild)->Arg(0)->Arg(10)->Arg(15)->Arg(20)->Arg(30)->Arg(32)->Arg(64)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_CflBuild)->Arg(0)->Arg(10)->Arg(15)->Arg(20)->Arg(30)->Arg(32)->Arg(64)
+    ->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_FclBuild(benchmark::State& state) {
   const auto bv = state.range(0) == 0 ? cfl::bench::FclBv::kOBBRSS : cfl::bench::FclBv::kRSS;

@@ -142,8 +142,10 @@ int main(int argc, char** argv) {
     scene.rss_a = std::make_unique<FclModel>(scene.cfl_a.geometry.mesh, FclBv::kRSS);
     scene.rss_b = std::make_unique<FclModel>(scene.model_b.mesh, FclBv::kRSS);
     scene.diagonal = scene.cfl_a.geometry.bounds.diagonal();
-    benchmark::AddCustomContext("mesh_a", path_a + " (" + std::to_string(scene.cfl_a.geometry.mesh.triangles.size()) + " triangles)");
-    benchmark::AddCustomContext("mesh_b", path_b + " (" + std::to_string(scene.model_b.mesh.triangles.size()) + " triangles)");
+    benchmark::AddCustomContext(
+        "mesh_a", path_a + " (" + std::to_string(scene.cfl_a.geometry.mesh.triangles.size()) + " triangles)");
+    benchmark::AddCustomContext("mesh_b",
+                                path_b + " (" + std::to_string(scene.model_b.mesh.triangles.size()) + " triangles)");
     benchmark::AddCustomContext("cfl_resolution", std::to_string(scene.cfl_a.statistics.resolution));
     benchmark::AddCustomContext("cfl_query_kernels", cfl::queryKernelsName(cfl::activeQueryKernels()));
 

@@ -168,7 +168,8 @@ Mesh rock(std::uint64_t seed, int levels) {
     double angle, depth;
   };
   std::vector<Crater> craters;
-  for (int k = 0; k < 9; ++k) craters.push_back({random.direction(), 0.12 + 0.25 * random.uniform(), 0.06 + 0.08 * random.uniform()});
+  for (int k = 0; k < 9; ++k)
+    craters.push_back({random.direction(), 0.12 + 0.25 * random.uniform(), 0.06 + 0.08 * random.uniform()});
   const Vec stretch{1.35, 1.0, 0.8};
 
   for (Vec& v : mesh.vertices) {

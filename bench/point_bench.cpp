@@ -9,9 +9,9 @@
 // closed: against ComputeSignedDistance (Open3D signs by ray-crossing parity). Both run on every hardware
 // thread, or on --threads T each (Open3D's nthreads, cfl's PointQueryOptions::threads); times are wall-clock
 // medians over the repeats, the two interleaved, and beside them the process CPU time of the same calls (all
-// threads summed), whose ratio holds when other programs share the cores and the wall clock does not. Open3D works in float: the points
-// are floats, given to both exactly, and answers must agree to 1e-6 of the diagonal, signs wherever
-// |distance| exceeds that. Exit 1 when they do not.
+// threads summed), whose ratio holds when other programs share the cores and the wall clock does not. Open3D
+// works in float: the points are floats, given to both exactly, and answers must agree to 1e-6 of the
+// diagonal, signs wherever |distance| exceeds that. Exit 1 when they do not.
 //
 // Open3D's signs come from casting rays. Where its ray casting finds nothing (checked first: a ray from outside
 // the mesh's box towards a vertex must hit), its signs are not compared. That is the case with Debian 12's
@@ -152,15 +152,17 @@ int main(int argc, char** argv) try {
   const Args args = parse(argc, argv);
   std::mt19937_64 rng(20261126);
   bool failed = false;
-  const std::string threads = args.threads == 0 ? std::string("all threads") : std::to_string(args.threads) + " thread(s)";
+  const std::string threads =
+      args.threads == 0 ? std::string("all threads") : std::to_string(args.threads) + " thread(s)";
   std::printf("CFL point queries against Open3D RaycastingScene, %zu points per set, median of %d, %s\n",
               args.points, args.repeats, threads.c_str());
   std::printf("%-16s %9s %-10s %-9s | %10s %10s %8s | %10s %10s %8s | %10s %10s | %9s %9s\n", "mesh", "tris",
               "points", "query", "Open3D s", "CFL s", "speedup", "O3D cpu s", "CFL cpu s", "cpu x", "max|d|/diag",
               "sign diff", "O3D bld s", "CFL bld s");
-  std::printf("(max|d|/diag: largest difference of |distance| from Open3D's; sign diff: points farther than 1e-6 of the\n"
-              " diagonal from the surface whose sign differs from Open3D's, or from cfl's winding number where Open3D's\n"
-              " rays hit nothing)\n");
+  std::printf(
+      "(max|d|/diag: largest difference of |distance| from Open3D's; sign diff: points farther than 1e-6 of the\n"
+      " diagonal from the surface whose sign differs from Open3D's, or from cfl's winding number where Open3D's\n"
+      " rays hit nothing)\n");
   for (const std::string& path : args.meshes) {
     const cfl::TriangleMesh mesh = cfl::loadMesh(path);
     auto start = Clock::now();
@@ -251,15 +253,17 @@ int main(int argc, char** argv) try {
           cfl::computePointDistances(model, Eigen::Isometry3d::Identity(), set.points.data(), checked, winding.data(),
                                      by_winding);
           for (std::size_t i = 0; i < checked; ++i)
-            if (std::abs(results[i].distance) > 1e-6 * diagonal && (results[i].distance < 0) != (winding[i].distance < 0))
+            if (std::abs(results[i].distance) > 1e-6 * diagonal &&
+                (results[i].distance < 0) != (winding[i].distance < 0))
               ++sign_differences;
         }
         const double o3d_median = median(o3d_times), cfl_median = median(cfl_times);
         const double o3d_cpu_median = median(o3d_cpu), cfl_cpu_median = median(cfl_cpu);
-        std::printf("%-16s %9zu %-10s %-9s | %10.4f %10.4f %7.2fx | %10.4f %10.4f %7.2fx | %10.2g %10zu | %9.3f %9.3f\n",
-                    name.c_str(), mesh.triangles.size(), set.name.c_str(), signed_query ? "signed" : "unsigned",
-                    o3d_median, cfl_median, o3d_median / cfl_median, o3d_cpu_median, cfl_cpu_median,
-                    o3d_cpu_median / cfl_cpu_median, worst, sign_differences, o3d_build, cfl_build);
+        std::printf(
+            "%-16s %9zu %-10s %-9s | %10.4f %10.4f %7.2fx | %10.4f %10.4f %7.2fx | %10.2g %10zu | %9.3f %9.3f\n",
+            name.c_str(), mesh.triangles.size(), set.name.c_str(), signed_query ? "signed" : "unsigned", o3d_median,
+            cfl_median, o3d_median / cfl_median, o3d_cpu_median, cfl_cpu_median, o3d_cpu_median / cfl_cpu_median, worst,
+            sign_differences, o3d_build, cfl_build);
         if (!(worst <= 1e-6) || sign_differences > 0) failed = true;
       }
     }

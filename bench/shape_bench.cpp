@@ -3,7 +3,8 @@
 // model (fcl_adapter/shape_queries.cpp). Then a robot-like batch: 50 spheres (a link chain's sphere
 // approximation) against a scene mesh at many configurations, spheres per second for both.
 //
-//   cfl_shape_bench [--poses N] [--repeats R] [--clock wall|cpu] [--seed S] [--model-dir DIR] [--shape sphere|capsule|box|robot]
+//   cfl_shape_bench [--poses N] [--repeats R] [--clock wall|cpu] [--seed S] [--model-dir DIR]
+//                   [--shape sphere|capsule|box|robot]
 //
 // Poses: for each mesh, shape and range (0.5% and 2% of the mesh's bounding-box diagonal), N poses with a
 // random rotation whose exact distance is the range, found by bisection along a random ray towards the

@@ -97,7 +97,8 @@ Fingerprint fingerprintOf(const MeshView& view) {
   f.build_state = view.build_state;
   for (int i = 0; i < kSampledVertices; ++i) {
     // Evenly spread, first and last included.
-    const std::int64_t k = view.num_vertices <= 1 ? 0 : std::int64_t(i) * (view.num_vertices - 1) / (kSampledVertices - 1);
+    const std::int64_t k =
+        view.num_vertices <= 1 ? 0 : std::int64_t(i) * (view.num_vertices - 1) / (kSampledVertices - 1);
     f.samples[i] = view.num_vertices > 0 ? view.vertices[k] : fcl::Vector3d::Zero();
   }
   return f;

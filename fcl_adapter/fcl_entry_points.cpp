@@ -336,7 +336,8 @@ double distanceImpl(const Geometry* o1, const Transform& tf1, const Owner* owner
   if (request.isSatisfied(result)) return result.min_distance;
   const cfl::DistanceOptions options = optionsOf(request, result);
   if (c1 != nullptr && c2 != nullptr) {
-    if (request.enable_signed_distance && signable(*c1, *c2)) return signedDistance(*c1, tf1, *c2, tf2, request, result);
+    if (request.enable_signed_distance && signable(*c1, *c2))
+      return signedDistance(*c1, tf1, *c2, tf2, request, result);
     // The query is fast where the other mesh lies inside A's grid and falls back to the two Bvhs outside it, so
     // A is the larger model (by bounding-box diagonal), whose grid covers more of the smaller one: a link
     // against a table, a shelf or a boulder. The distance is the same either way; equal sizes keep the
@@ -402,7 +403,8 @@ std::size_t collideSolids(const CFLGeometry& c1, const Transform& tf1, const CFL
   if (!request.enable_contact) {
     if (contacts.empty())
       result.addContact(fcl::Contact<double>(&c1, &c2, fcl::Contact<double>::NONE, fcl::Contact<double>::NONE));
-    for (const cfl::Contact& k : contacts) result.addContact(fcl::Contact<double>(&c1, &c2, k.triangle_a, k.triangle_b));
+    for (const cfl::Contact& k : contacts)
+      result.addContact(fcl::Contact<double>(&c1, &c2, k.triangle_a, k.triangle_b));
     return result.numContacts();
   }
   const cfl::PenetrationResult p = cfl::computePenetration(c1.model(), tf1, c2.model(), tf2);

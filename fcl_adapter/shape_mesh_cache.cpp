@@ -58,7 +58,8 @@ std::shared_ptr<ShapeMesh> makeShapeMesh(const std::vector<Eigen::Vector3d>& ver
 std::shared_ptr<ShapeMesh> boxMesh(const Eigen::Vector3d& side) {
   std::vector<Eigen::Vector3d> vertices;
   for (int i = 0; i < 8; ++i)
-    vertices.emplace_back((i & 1 ? 0.5 : -0.5) * side.x(), (i & 2 ? 0.5 : -0.5) * side.y(), (i & 4 ? 0.5 : -0.5) * side.z());
+    vertices.emplace_back((i & 1 ? 0.5 : -0.5) * side.x(), (i & 2 ? 0.5 : -0.5) * side.y(),
+                          (i & 4 ? 0.5 : -0.5) * side.z());
   // The six faces as quads of corner ids (bit 0: +x, bit 1: +y, bit 2: +z); makeShapeMesh orients them.
   const std::vector<std::vector<int>> faces = {{0, 2, 6, 4}, {1, 3, 7, 5}, {0, 1, 5, 4},
                                                {2, 3, 7, 6}, {0, 1, 3, 2}, {4, 5, 7, 6}};

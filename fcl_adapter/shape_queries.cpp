@@ -96,7 +96,8 @@ bool meshTriangleInside(const cfl::MeshModel& mesh, const Transform& tf_c, const
   stack[top++] = 0;
   while (top > 0) {
     const cfl::BvhNode& node = nodes[stack[--top]];
-    if ((node.box().min.array() > box_M.max.array()).any() || (node.box().max.array() < box_M.min.array()).any()) continue;
+    if ((node.box().min.array() > box_M.max.array()).any() || (node.box().max.array() < box_M.min.array()).any())
+      continue;
     if (node.isLeaf()) {
       for (int i = node.first; i < node.first + node.count; ++i)
         if (shape.contains(X_SM * mesh.corners.in_leaf_order[i][0])) return true;
@@ -190,7 +191,8 @@ void polyhedronContacts(const Geometry& cfl, const cfl::CflModel& model, const T
   if (!nodes.empty()) stack[top++] = 0;
   while (top > 0 && added < budget) {
     const cfl::BvhNode& node = nodes[stack[--top]];
-    if ((node.box().min.array() > box_M.max.array()).any() || (node.box().max.array() < box_M.min.array()).any()) continue;
+    if ((node.box().min.array() > box_M.max.array()).any() || (node.box().max.array() < box_M.min.array()).any())
+      continue;
     if (!node.isLeaf()) {
       stack[top++] = node.first + 1;
       stack[top++] = node.first;
@@ -273,8 +275,8 @@ bool shapeDistance(const Geometry& cfl, const cfl::CflModel& model, const Transf
     // The shape's point nearest the mesh (outside) or deepest in it (inside): |on_shape - mesh_point| is
     // |distance - radius| either way, since `direction` points from the mesh point to the segment point
     // outside and outward inside.
-    record(d.distance - swept.radius, cfl, shape, d.triangle, d.mesh_point, d.segment_point - swept.radius * d.direction,
-           request, result);
+    record(d.distance - swept.radius, cfl, shape, d.triangle, d.mesh_point,
+           d.segment_point - swept.radius * d.direction, request, result);
     return true;
   }
   if (shape.getNodeType() == fcl::GEOM_BOX) {

@@ -13,6 +13,9 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
+#include <sstream>
+#include <string>
 #include <vector>
 
 namespace {
@@ -39,6 +42,11 @@ void exercise(const unsigned char* data, std::size_t size) {
   const std::vector<unsigned char> saved = cfl::serializeCflModel(model);
   const cfl::CflModel again = cfl::deserializeCflModel(saved.data(), saved.size(), "fuzz-resaved.cfl");
   if (cfl::serializeCflModel(again) != saved) std::abort();
+  // The stream writer writes those very bytes.
+  std::ostringstream stream;
+  cfl::writeCflModel(model, stream);
+  const std::string streamed = stream.str();
+  if (streamed.size() != saved.size() || std::memcmp(streamed.data(), saved.data(), saved.size()) != 0) std::abort();
   // And it can be queried, in both modes, near and far. (A forged list may give a wrong distance, which
   // the checksum exists to prevent; this only checks that nothing breaks.)
   // Valid models may hold coordinates up to kMaxCoordinate, where a pose built from them overflows (those

@@ -43,7 +43,8 @@ void computeDistancesImpl(const CflModel& a, const Eigen::Isometry3d& X_WA, cons
                           const Eigen::Isometry3d* X_WB, std::size_t count, DistanceResult* results,
                           const BatchOptions& options) {
   validatePoses(X_WA, X_WB, count, results);
-  runParallel(count, options, [&](std::size_t i) { results[i] = computeDistance(a, X_WA, b, X_WB[i], options.distance); });
+  runParallel(count, options,
+              [&](std::size_t i) { results[i] = computeDistance(a, X_WA, b, X_WB[i], options.distance); });
 }
 
 }  // namespace

@@ -94,7 +94,8 @@ void testTriangle(const Eigen::Vector3d t[3], const Eigen::Vector4d& plane_S, co
     const double reach = (a + along * ab - sphere_S.head<3>()).norm() - sphere_S.w();
     if (reach > 0 && reach * reach >= best.squared) continue;
     Eigen::Vector3d on_edge, on_triangle;
-    const double d = segmentTriangleSquaredDistance(corners[e[0]], corners[e[1]], t[0], t[1], t[2], &on_edge, &on_triangle);
+    const double d =
+        segmentTriangleSquaredDistance(corners[e[0]], corners[e[1]], t[0], t[1], t[2], &on_edge, &on_triangle);
     if (d < best.squared) best = {d, on_edge, on_triangle, id};
   }
   if (best.triangle == id && best.squared == 0) return;
@@ -218,8 +219,8 @@ struct BoxFrame {
 
 // Triangle `id` (corners, bounding sphere and plane in frame M) against the box, if its sphere can beat the
 // best so far.
-inline void considerTriangle(const BoxFrame& box, const std::array<Eigen::Vector3d, 3>& c, const Eigen::Vector4d& sphere,
-                             const Eigen::Vector4d& plane, int id, Best& best) {
+inline void considerTriangle(const BoxFrame& box, const std::array<Eigen::Vector3d, 3>& c,
+                             const Eigen::Vector4d& sphere, const Eigen::Vector4d& plane, int id, Best& best) {
   const Eigen::Vector3d center_B = box.X_BM * sphere.head<3>();
   const double reach = std::sqrt(pointBoxSquaredDistance(center_B, box.half, nullptr)) - sphere.w();
   if (reach > 0 && reach * reach >= best.squared) return;
@@ -266,8 +267,8 @@ void searchBvh(const MeshModel& mesh, const BoxFrame& box, Best& best) {
     if (node.isLeaf()) {
       // A leaf holds several triangles: each is first bounded by its own sphere against the box.
       for (int i = node.first; i < node.first + node.count; ++i)
-        considerTriangle(box, mesh.corners.in_leaf_order[i], mesh.leaf_spheres[i], mesh.leaf_planes[i], mesh.bvh.triangle_ids[i],
-                         best);
+        considerTriangle(box, mesh.corners.in_leaf_order[i], mesh.leaf_spheres[i], mesh.leaf_planes[i],
+                         mesh.bvh.triangle_ids[i], best);
       if (best.squared == 0) break;
       continue;
     }

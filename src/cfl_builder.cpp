@@ -238,7 +238,8 @@ struct ListScratch {
   // bits must match, so that a point is never answered for a neighbour a rounding away.
   struct PointKeyHash {
     std::size_t operator()(const std::array<std::uint64_t, 3>& key) const {
-      return std::size_t((key[0] * 0x9e3779b97f4a7c15ull ^ key[1]) * 0xc2b2ae3d27d4eb4full ^ key[2]) * 0x165667b19e3779f9ull;
+      return std::size_t((key[0] * 0x9e3779b97f4a7c15ull ^ key[1]) * 0xc2b2ae3d27d4eb4full ^ key[2]) *
+             0x165667b19e3779f9ull;
     }
   };
   std::unordered_map<std::array<std::uint64_t, 3>, std::pair<double, int>, PointKeyHash> lattice_nearest;

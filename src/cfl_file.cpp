@@ -13,7 +13,9 @@
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <ostream>
 #include <sstream>
+#include <stdexcept>
 #include <thread>
 #include <type_traits>
 
@@ -79,7 +81,9 @@ static_assert(std::is_same_v<decltype(RegionTree::leaf_corner_distance)::value_t
 std::uint32_t loadU32(const unsigned char* p) {
   return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[3]) << 24;
 }
-std::uint64_t loadU64(const unsigned char* p) { return std::uint64_t(loadU32(p)) | std::uint64_t(loadU32(p + 4)) << 32; }
+std::uint64_t loadU64(const unsigned char* p) {
+  return std::uint64_t(loadU32(p)) | std::uint64_t(loadU32(p + 4)) << 32;
+}
 void storeU32(unsigned char* p, std::uint32_t value) {
   for (int i = 0; i < 4; ++i) p[i] = static_cast<unsigned char>(value >> (8 * i));
 }
@@ -112,20 +116,30 @@ std::string tagName(std::uint32_t tag) {
   return name;
 }
 
-// Appends little-endian values to a buffer whose final size is known in advance.
+// Extends `crc`, the CRC-32 of some bytes (0 for none), to that of those bytes followed by `data`.
+std::uint32_t crc32Update(std::uint32_t crc, const unsigned char* data, std::size_t size) {
+  // zlib takes lengths as uInt (32 bits), so a larger buffer goes in slices.
+  uLong value = crc;
+  constexpr std::size_t kSlice = std::size_t(1) << 30;
+  while (size > 0) {
+    const std::size_t slice = std::min(size, kSlice);
+    value = ::crc32(value, data, static_cast<uInt>(slice));
+    data += slice;
+    size -= slice;
+  }
+  return static_cast<std::uint32_t>(value);
+}
+
+// Streams little-endian values to `sink`, a callable taking (const unsigned char*, std::size_t), through a
+// small buffer, so that no copy of the whole file is ever made: the sink sees the file as a few large
+// pieces (on a little-endian host, arrays go to it straight from the model's memory) and buffer-sized
+// chunks of converted values. Call finish() to pass on what is buffered.
+template <typename Sink>
 class Writer {
  public:
-  explicit Writer(std::size_t capacity) { bytes_.reserve(capacity); }
-  void u32(std::uint32_t value) {
-    unsigned char p[4];
-    storeU32(p, value);
-    bytes_.insert(bytes_.end(), p, p + 4);
-  }
-  void u64(std::uint64_t value) {
-    unsigned char p[8];
-    storeU64(p, value);
-    bytes_.insert(bytes_.end(), p, p + 8);
-  }
+  explicit Writer(Sink& sink) : sink_(sink), buffer_(kBufferSize) {}
+  void u32(std::uint32_t value) { storeU32(room(4), value); }
+  void u64(std::uint64_t value) { storeU64(room(8), value); }
   void i32(std::int32_t value) { u32(static_cast<std::uint32_t>(value)); }
   void i64(std::int64_t value) { u64(static_cast<std::uint64_t>(value)); }
   void f64(double value) {
@@ -133,13 +147,22 @@ class Writer {
     std::memcpy(&bits, &value, 8);
     u64(bits);
   }
+  void bytes(const unsigned char* data, std::size_t count) {
+    if (count <= kBufferSize - used_) {
+      std::memcpy(buffer_.data() + used_, data, count);
+      used_ += count;
+      return;
+    }
+    finish();
+    sink_(data, count);
+    written_ += count;
+  }
   // Integers and floats of 1, 2, 4 or 8 bytes, or blocks of eight corner distances, each stored as its
   // little-endian bit pattern.
   template <typename T>
   void array(const std::vector<T>& values) {
     if constexpr (kBulkCopy || sizeof(T) == 1) {
-      const auto* p = reinterpret_cast<const unsigned char*>(values.data());
-      bytes_.insert(bytes_.end(), p, p + sizeof(T) * values.size());
+      bytes(reinterpret_cast<const unsigned char*>(values.data()), sizeof(T) * values.size());
     } else {
       for (const T& value : values) element(value);
     }
@@ -149,16 +172,32 @@ class Writer {
     u32(0);
     u64(length);
   }
-  std::vector<unsigned char>& bytes() { return bytes_; }
+  void finish() {
+    if (used_ == 0) return;
+    sink_(buffer_.data(), used_);
+    written_ += used_;
+    used_ = 0;
+  }
+  // Bytes passed to the sink so far, and those still buffered.
+  std::uint64_t size() const { return written_ + used_; }
 
  private:
+  static constexpr std::size_t kBufferSize = std::size_t(1) << 16;
+
+  unsigned char* room(std::size_t count) {
+    if (kBufferSize - used_ < count) finish();
+    unsigned char* p = buffer_.data() + used_;
+    used_ += count;
+    return p;
+  }
   template <typename T>
   void element(const T& value) {
     if constexpr (std::is_same_v<T, CornerDistances>) {
       for (std::uint16_t distance : value) element(distance);
     } else if constexpr (sizeof(T) == 2) {
-      bytes_.push_back(static_cast<unsigned char>(value & 0xffu));
-      bytes_.push_back(static_cast<unsigned char>(value >> 8));
+      unsigned char* p = room(2);
+      p[0] = static_cast<unsigned char>(value & 0xffu);
+      p[1] = static_cast<unsigned char>(value >> 8);
     } else if constexpr (sizeof(T) == 4) {
       std::uint32_t bits;
       std::memcpy(&bits, &value, 4);
@@ -170,7 +209,10 @@ class Writer {
       u64(bits);
     }
   }
-  std::vector<unsigned char> bytes_;
+  Sink& sink_;
+  std::vector<unsigned char> buffer_;
+  std::size_t used_ = 0;
+  std::uint64_t written_ = 0;
 };
 
 // Reads little-endian values from [data, data + size), throwing a message that names the file and the
@@ -330,12 +372,14 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
   }
   for (int axis = 0; axis < 3; ++axis) {
     if (tree.root_dims[axis] < 1) {
-      fail("regions root_dims[" + std::to_string(axis) + "] is " + std::to_string(tree.root_dims[axis]) + ", must be >= 1");
+      fail("regions root_dims[" + std::to_string(axis) + "] is " + std::to_string(tree.root_dims[axis]) +
+           ", must be >= 1");
     }
   }
   if (!tree.bounds().max.allFinite()) fail("regions far corner is not finite (root_size times root_dims overflows)");
   if (tree.max_depth < 0 || tree.max_depth > kMaxTreeDepth) {
-    fail("regions max_depth is " + std::to_string(tree.max_depth) + ", must be in [0, " + std::to_string(kMaxTreeDepth) + "]");
+    fail("regions max_depth is " + std::to_string(tree.max_depth) + ", must be in [0, " +
+         std::to_string(kMaxTreeDepth) + "]");
   }
   // A power of two (frexp's mantissa exactly 1/2) in [kFinestCornerDistanceUnit, 1]: the query multiplies
   // by it and relies on the product being exact.
@@ -352,8 +396,12 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
   // The nodes. Node and leaf indices are 31-bit (the top bit marks a leaf), which also keeps `v + 8` below.
   const std::uint64_t node_count = tree.nodes.size();
   const std::uint64_t leaf_count = tree.leaf_list.size();
-  if (node_count >= RegionTree::kLeafBit) fail(std::to_string(node_count) + " nodes, more than 31-bit indices can name");
-  if (leaf_count >= RegionTree::kLeafBit) fail(std::to_string(leaf_count) + " leaves, more than 31-bit indices can name");
+  if (node_count >= RegionTree::kLeafBit) {
+    fail(std::to_string(node_count) + " nodes, more than 31-bit indices can name");
+  }
+  if (leaf_count >= RegionTree::kLeafBit) {
+    fail(std::to_string(leaf_count) + " leaves, more than 31-bit indices can name");
+  }
   // The root cells come first among the nodes, so there must be at least as many nodes as root cells,
   // checked by division so that absurd dims (three ints multiply to 2^93) never overflow; only then is
   // rootCount() safe to call.
@@ -394,7 +442,9 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
         fail("node " + std::to_string(n) + " is leaf " + std::to_string(leaf) + ", out of range [0, " +
              std::to_string(leaf_count) + ")");
       }
-      if (leaf_seen[leaf]) fail("leaf " + std::to_string(leaf) + " is referenced twice (again by node " + std::to_string(n) + ")");
+      if (leaf_seen[leaf]) {
+        fail("leaf " + std::to_string(leaf) + " is referenced twice (again by node " + std::to_string(n) + ")");
+      }
       leaf_seen[leaf] = true;
       if (leaves_per_depth.size() <= std::size_t(d)) leaves_per_depth.resize(d + 1, 0);
       ++leaves_per_depth[d];
@@ -405,8 +455,8 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
            ", not after itself (children follow their parent; a node pointing to itself or back would loop)");
     }
     if (value < root_count) {
-      fail("node " + std::to_string(n) + " points to children at node " + std::to_string(value) + ", a root cell (there are " +
-           std::to_string(root_count) + ")");
+      fail("node " + std::to_string(n) + " points to children at node " + std::to_string(value) +
+           ", a root cell (there are " + std::to_string(root_count) + ")");
     }
     if (std::uint64_t(value) + 8 > node_count) {
       fail("node " + std::to_string(n) + " points to children at nodes " + std::to_string(value) + " to " +
@@ -450,9 +500,10 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
                       tree.list_entry_bounds.size(), fail);
   for (std::size_t list = 0; list < list_count; ++list) {
     const std::int32_t base = tree.listBase(std::uint32_t(list));
-    if (base < 0 && std::uint64_t(std::uint32_t(~base)) + tree.listLength(std::uint32_t(list)) > tree.list_high_ids.size()) {
-      fail("list " + std::to_string(list) + " reads list_high_ids past its " + std::to_string(tree.list_high_ids.size()) +
-           " entries");
+    if (base < 0 &&
+        std::uint64_t(std::uint32_t(~base)) + tree.listLength(std::uint32_t(list)) > tree.list_high_ids.size()) {
+      fail("list " + std::to_string(list) + " reads list_high_ids past its " +
+           std::to_string(tree.list_high_ids.size()) + " entries");
     }
   }
   validateListContents(offsets, [&](std::uint32_t list, std::uint32_t n) { return tree.listTriangle(list, n); },
@@ -469,7 +520,8 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
     }
     const float lower = tree.leaf_lower_bound[leaf];
     if (!std::isfinite(lower) || lower < 0) {
-      fail("leaf_lower_bound of leaf " + std::to_string(leaf) + " is " + numberText(lower) + ", must be finite and >= 0");
+      fail("leaf_lower_bound of leaf " + std::to_string(leaf) + " is " + numberText(lower) +
+           ", must be finite and >= 0");
     }
   }
 
@@ -501,18 +553,7 @@ void validateModelStructure(const CflModel& model, const std::string& context) {
 
 namespace detail {
 
-std::uint32_t crc32(const unsigned char* data, std::size_t size) {
-  // zlib takes lengths as uInt (32 bits), so a larger buffer goes in slices.
-  uLong crc = ::crc32(0L, Z_NULL, 0);
-  constexpr std::size_t kSlice = std::size_t(1) << 30;
-  while (size > 0) {
-    const std::size_t slice = std::min(size, kSlice);
-    crc = ::crc32(crc, data, static_cast<uInt>(slice));
-    data += slice;
-    size -= slice;
-  }
-  return static_cast<std::uint32_t>(crc);
-}
+std::uint32_t crc32(const unsigned char* data, std::size_t size) { return crc32Update(0, data, size); }
 
 void resealCflBuffer(unsigned char* data, std::size_t size) {
   if (size < kHeaderSize) return;
@@ -522,34 +563,34 @@ void resealCflBuffer(unsigned char* data, std::size_t size) {
 
 }  // namespace detail
 
-std::vector<unsigned char> serializeCflModel(const CflModel& model) {
+namespace {
+
+// The payload's size, known before any of it is written because the header, which comes first, holds it.
+// Validates the model first, so that nothing is written that the loader would refuse.
+std::uint64_t checkedPayloadSize(const CflModel& model) {
   validateMesh(model.geometry.mesh);
   validateModelStructure(model, "cannot save CFL model");
   const TriangleMesh& mesh = model.geometry.mesh;
   const RegionTree& tree = model.regions;
-  const BuildStatistics& s = model.statistics;
-
   const std::uint64_t mesh_size = 16 + 24 * mesh.vertices.size() + 12 * mesh.triangles.size();
   const std::uint64_t node_size = 8 + 4 * tree.nodes.size();
   const std::uint64_t leaf_size = 8 + kLeafRecordSize * tree.leaf_list.size();
-  // The file keeps every id in 4 bytes, whatever RegionTree's encoding in memory.
-  const std::vector<std::int32_t> list_triangles = tree.listTriangles();
-  const std::uint64_t list_size = 16 + 4 * (tree.list_offsets.size() + list_triangles.size());
+  // One 4-byte id per entry, whatever RegionTree's encoding in memory; there are as many entries as bounds.
+  const std::uint64_t list_size = 16 + 4 * (tree.list_offsets.size() + tree.list_entry_bounds.size());
   const std::uint64_t entry_bounds_size = 8 + tree.list_entry_bounds.size();
-  const std::uint64_t statistics_size = kStatisticsFixedSize + 8 * s.leaves_per_depth.size();
-  const std::uint64_t payload_size = 7 * kSectionHeaderSize + mesh_size + kTreeSectionSize + node_size + leaf_size +
-                                     list_size + entry_bounds_size + statistics_size;
+  const std::uint64_t statistics_size = kStatisticsFixedSize + 8 * model.statistics.leaves_per_depth.size();
+  return 7 * kSectionHeaderSize + mesh_size + kTreeSectionSize + node_size + leaf_size + list_size +
+         entry_bounds_size + statistics_size;
+}
 
-  Writer out(kHeaderSize + payload_size);
-  auto& bytes = out.bytes();
-  bytes.insert(bytes.end(), kMagic.begin(), kMagic.end());
-  out.u32(kEndianMarker);
-  out.u32(kCflFileVersion);
-  out.u64(payload_size);
-  out.u32(0);  // Both checksums are filled in once the payload is written.
-  out.u32(0);
+// Writes the payload's sections in file order (checkedPayloadSize sizes them the same way).
+template <typename Sink>
+void writePayload(const CflModel& model, Writer<Sink>& out) {
+  const TriangleMesh& mesh = model.geometry.mesh;
+  const RegionTree& tree = model.regions;
+  const BuildStatistics& s = model.statistics;
 
-  out.section(kTagMesh, mesh_size);
+  out.section(kTagMesh, 16 + 24 * mesh.vertices.size() + 12 * mesh.triangles.size());
   out.u64(mesh.vertices.size());
   out.u64(mesh.triangles.size());
   for (const Eigen::Vector3d& p : mesh.vertices) {
@@ -568,27 +609,31 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
   out.u32(model.topology_culling ? 1u : 0u);
   out.f64(tree.corner_distance_unit);
 
-  out.section(kTagNodes, node_size);
+  out.section(kTagNodes, 8 + 4 * tree.nodes.size());
   out.u64(tree.nodes.size());
   out.array(tree.nodes);
 
-  out.section(kTagLeaves, leaf_size);
+  out.section(kTagLeaves, 8 + kLeafRecordSize * tree.leaf_list.size());
   out.u64(tree.leaf_list.size());
   out.array(tree.leaf_list);
   out.array(tree.leaf_lower_bound);
   out.array(tree.leaf_corner_distance);
 
-  out.section(kTagList, list_size);
+  // The ids are decoded list by list straight into the output, never into an array of them all.
+  const std::uint64_t entry_count = tree.list_entry_bounds.size();
+  out.section(kTagList, 16 + 4 * (tree.list_offsets.size() + entry_count));
   out.u64(tree.list_offsets.size());
-  out.u64(list_triangles.size());
+  out.u64(entry_count);
   out.array(tree.list_offsets);
-  out.array(list_triangles);
+  for (std::uint32_t list = 0; list < tree.listCount(); ++list) {
+    tree.forEachListTriangle(list, tree.listLength(list), [&](std::ptrdiff_t, std::int32_t id) { out.i32(id); });
+  }
 
-  out.section(kTagEntryBounds, entry_bounds_size);
-  out.u64(tree.list_entry_bounds.size());
+  out.section(kTagEntryBounds, 8 + entry_count);
+  out.u64(entry_count);
   out.array(tree.list_entry_bounds);
 
-  out.section(kTagStatistics, statistics_size);
+  out.section(kTagStatistics, kStatisticsFixedSize + 8 * s.leaves_per_depth.size());
   out.i64(s.resolution);
   out.i64(s.voxel_count);
   out.i64(s.leaves_without_list);
@@ -600,10 +645,71 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model) {
   out.u32(s.coarsened ? 1u : 0u);
   out.u64(s.leaves_per_depth.size());
   out.array(s.leaves_per_depth);
+  out.finish();
+}
 
-  if (bytes.size() != kHeaderSize + payload_size) throw std::logic_error("serializeCflModel: size bookkeeping is off");
-  detail::resealCflBuffer(bytes.data(), bytes.size());
-  return std::move(bytes);
+void checkWrittenSize(std::uint64_t written, std::uint64_t payload_size) {
+  if (written != payload_size) throw std::logic_error("CFL file writer: size bookkeeping is off");
+}
+
+std::array<unsigned char, kHeaderSize> fileHeader(std::uint64_t payload_size, std::uint32_t payload_crc) {
+  std::array<unsigned char, kHeaderSize> header{};
+  std::memcpy(header.data(), kMagic.data(), kMagic.size());
+  storeU32(header.data() + 8, kEndianMarker);
+  storeU32(header.data() + 12, kCflFileVersion);
+  storeU64(header.data() + 16, payload_size);
+  storeU32(header.data() + 24, payload_crc);
+  storeU32(header.data() + 28, detail::crc32(header.data(), 28));
+  return header;
+}
+
+// writeCflModel once the model is validated and its payload sized. The header's payload checksum precedes
+// the payload, so a first pass over the model computes it without writing anything; the second writes the
+// file once, in order, so the stream is never sought (pipes work) and no copy of the file is held.
+void writeValidatedCflModel(const CflModel& model, std::uint64_t payload_size, std::ostream& stream) {
+  std::uint32_t payload_crc = 0;
+  const auto checksum = [&](const unsigned char* data, std::size_t count) {
+    payload_crc = crc32Update(payload_crc, data, count);
+  };
+  Writer<decltype(checksum)> checksum_pass(checksum);
+  writePayload(model, checksum_pass);
+  checkWrittenSize(checksum_pass.size(), payload_size);
+
+  std::uint64_t written = 0;
+  const auto put = [&](const unsigned char* data, std::size_t count) {
+    if (!stream.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(count))) {
+      throw Error("writing a CFL model: the stream failed after " + std::to_string(written) + " of " +
+                  std::to_string(kHeaderSize + payload_size) + " bytes");
+    }
+    written += count;
+  };
+  const std::array<unsigned char, kHeaderSize> header = fileHeader(payload_size, payload_crc);
+  put(header.data(), header.size());
+  Writer<decltype(put)> out(put);
+  writePayload(model, out);
+  checkWrittenSize(out.size(), payload_size);
+}
+
+}  // namespace
+
+std::vector<unsigned char> serializeCflModel(const CflModel& model) {
+  const std::uint64_t payload_size = checkedPayloadSize(model);
+  std::vector<unsigned char> bytes;
+  bytes.reserve(kHeaderSize + payload_size);
+  const auto append = [&](const unsigned char* data, std::size_t count) {
+    bytes.insert(bytes.end(), data, data + count);
+  };
+  const std::array<unsigned char, kHeaderSize> header = fileHeader(payload_size, 0);
+  append(header.data(), header.size());
+  Writer<decltype(append)> out(append);
+  writePayload(model, out);
+  checkWrittenSize(out.size(), payload_size);
+  detail::resealCflBuffer(bytes.data(), bytes.size());  // the payload checksum, now that the payload is here
+  return bytes;
+}
+
+void writeCflModel(const CflModel& model, std::ostream& stream) {
+  writeValidatedCflModel(model, checkedPayloadSize(model), stream);
 }
 
 namespace {
@@ -627,14 +733,17 @@ std::uint64_t checkHeader(const unsigned char* data, std::size_t available, std:
   }
   const std::uint32_t marker = loadU32(data + 8);
   if (marker != kEndianMarker) {
-    if (marker == 0x04030201u) fail("written in big-endian byte order (marker bytes 01 02 03 04); files are little-endian");
+    if (marker == 0x04030201u) {
+      fail("written in big-endian byte order (marker bytes 01 02 03 04); files are little-endian");
+    }
     fail("bad endianness marker (bytes " + hexBytes(data + 8, 4) + ", expected 04 03 02 01)");
   }
   const std::uint32_t version = loadU32(data + 12);
   // Versions 1 and 2 stored a uniform grid, which the regions no longer are; the build is the only way
   // from one to the other, so no loader for them is kept.
   if (version == 1 || version == 2) {
-    fail("a version-" + std::to_string(version) + " CFL file (uniform grid) from an earlier cfl: rebuild it with `cfl build`");
+    fail("a version-" + std::to_string(version) +
+         " CFL file (uniform grid) from an earlier cfl: rebuild it with `cfl build`");
   }
   if (version == 3) {
     fail("a version-3 CFL file (float corner distances) from an earlier cfl: rebuild it with `cfl build`");
@@ -787,16 +896,19 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
   }
   // The lists as stored, checked before RegionTree::appendList encodes them (it needs ids >= 0).
   {
-    validateListOffsets(tree.list_offsets, list_triangles.size(), "list_triangles", tree.list_entry_bounds.size(), fail);
+    validateListOffsets(tree.list_offsets, list_triangles.size(), "list_triangles", tree.list_entry_bounds.size(),
+                        fail);
     validateListContents(
-        tree.list_offsets, [&](std::uint32_t list, std::uint32_t n) { return list_triangles[tree.list_offsets[list] + n]; },
+        tree.list_offsets,
+        [&](std::uint32_t list, std::uint32_t n) { return list_triangles[tree.list_offsets[list] + n]; },
         tree.list_entry_bounds, model.geometry.mesh.triangles.size(), fail);
     const std::vector<std::uint32_t> offsets = std::move(tree.list_offsets);
     const std::vector<std::uint8_t> bounds = std::move(tree.list_entry_bounds);
     tree.list_offsets.assign(1, 0);
     tree.list_entry_bounds.clear();
     for (std::size_t list = 0; list + 1 < offsets.size(); ++list) {
-      tree.appendList(list_triangles.data() + offsets[list], bounds.data() + offsets[list], offsets[list + 1] - offsets[list]);
+      tree.appendList(list_triangles.data() + offsets[list], bounds.data() + offsets[list],
+                      offsets[list + 1] - offsets[list]);
     }
     tree.list_offsets.shrink_to_fit();
     tree.list_entry_ids.shrink_to_fit();
@@ -808,7 +920,9 @@ CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const 
 }
 
 void saveCflModel(const CflModel& model, const std::string& path) {
-  const std::vector<unsigned char> bytes = serializeCflModel(model);
+  // Validated before any file is created, so that a model the loader would refuse leaves no trace.
+  const std::uint64_t payload_size = checkedPayloadSize(model);
+  const std::uint64_t file_size = kHeaderSize + payload_size;
   // A unique temporary name per process, thread and call, so concurrent writers never share one.
   static std::atomic<unsigned> counter{0};
   std::ostringstream temporary;
@@ -821,12 +935,23 @@ void saveCflModel(const CflModel& model, const std::string& path) {
   {
     std::ofstream file(temporary_path, std::ios::binary | std::ios::trunc);
     if (!file) throw Error(path + ": cannot open " + temporary_path + " for writing: " + std::strerror(errno));
-    file.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-    file.close();
-    if (!file) {
-      const std::string reason = std::strerror(errno);
+    bool failed = false;
+    try {
+      writeValidatedCflModel(model, payload_size, file);
+      file.close();
+      failed = !file;
+    } catch (const Error&) {
+      failed = true;  // a write failed (the model is valid by now); errno says why
+    } catch (...) {
+      file.close();
       std::remove(temporary_path.c_str());
-      throw Error(path + ": writing " + std::to_string(bytes.size()) + " bytes failed: " + reason);
+      throw;
+    }
+    if (failed) {
+      const std::string reason = std::strerror(errno);
+      file.close();
+      std::remove(temporary_path.c_str());
+      throw Error(path + ": writing " + std::to_string(file_size) + " bytes failed: " + reason);
     }
   }
   if (std::rename(temporary_path.c_str(), path.c_str()) != 0) {

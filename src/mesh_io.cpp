@@ -201,7 +201,8 @@ TriangleMesh loadMesh(const std::string& path) {
   SceneFlattener flattener{*scene, path, {}, 0, {}};
   flattener.visit(*scene->mRootNode, aiMatrix4x4());
   std::string contents = std::to_string(scene->mNumMeshes) + " meshes";
-  if (flattener.skipped_faces > 0) contents += ", " + std::to_string(flattener.skipped_faces) + " point or line primitives";
+  if (flattener.skipped_faces > 0)
+    contents += ", " + std::to_string(flattener.skipped_faces) + " point or line primitives";
   return checked(path, flattener.assembler.take(), contents);
 }
 

@@ -72,7 +72,8 @@ MeshModel makeMeshModel(TriangleMesh mesh) {
   for (std::size_t n = 0; n < count; ++n) {
     const int t = model.bvh.triangle_ids[n];
     corners.leaf_position[std::size_t(t)] = std::int32_t(n);
-    for (int k = 0; k < 3; ++k) corners.in_leaf_order[n][k] = model.mesh.vertices[model.mesh.triangles[std::size_t(t)][k]];
+    for (int k = 0; k < 3; ++k)
+      corners.in_leaf_order[n][k] = model.mesh.vertices[model.mesh.triangles[std::size_t(t)][k]];
   }
   model.spheres.resize(count);
   model.planes.resize(count);

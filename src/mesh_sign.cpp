@@ -249,7 +249,8 @@ MeshSign analyzeMeshSign(const MeshModel& model) {
   const EdgeUse* first_nonmanifold = nullptr;
   std::pair<const EdgeUse*, const EdgeUse*> first_inconsistent{nullptr, nullptr};
   auto earlier = [](const EdgeUse* candidate, const EdgeUse* current) {
-    return current == nullptr || std::tie(candidate->triangle, candidate->edge) < std::tie(current->triangle, current->edge);
+    return current == nullptr ||
+           std::tie(candidate->triangle, candidate->edge) < std::tie(current->triangle, current->edge);
   };
   for (std::size_t begin = 0; begin < uses.size();) {
     std::size_t end = begin + 1;
@@ -303,7 +304,8 @@ MeshSign analyzeMeshSign(const MeshModel& model) {
            << tri[(first_nonmanifold->edge + 1) % 3] << " of triangle " << first_nonmanifold->triangle << ")";
   } else if (first_inconsistent.first != nullptr) {
     reason << "inconsistently oriented: " << closure.inconsistent_edges << " edge"
-           << (closure.inconsistent_edges == 1 ? "" : "s") << " traversed in the same direction by both triangles (the first: triangles "
+           << (closure.inconsistent_edges == 1 ? "" : "s")
+           << " traversed in the same direction by both triangles (the first: triangles "
            << first_inconsistent.first->triangle << " and " << first_inconsistent.second->triangle << ")";
   } else if (first_degenerate >= 0) {
     reason << "degenerate triangle " << first_degenerate << " (zero area)";

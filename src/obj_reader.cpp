@@ -44,8 +44,8 @@ struct Reader {
     if (value == 0) fail("face corner '" + std::string(token) + "' has vertex index 0 (OBJ counts from 1)");
     if (value < 0) {
       if (value < -vertices_so_far) {  // not -value, which overflows for the smallest int64
-        fail("face corner '" + std::string(token) + "' counts back further than the " + std::to_string(vertices_so_far) +
-             " vertices defined before it");
+        fail("face corner '" + std::string(token) + "' counts back further than the " +
+             std::to_string(vertices_so_far) + " vertices defined before it");
       }
       return vertices_so_far + value;
     }

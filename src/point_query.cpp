@@ -207,6 +207,15 @@ RegionCell locateNear(const RegionTree& regions, const Eigen::Vector3d& p_M, det
   return cache->cell;
 }
 
+// The one-triangle kernel of the build whose four-triangle kernel is `four` (fourTriangleKernel's): the same
+// bits either way, fewer instructions in the x86-64-v3 build.
+detail::PointTriangle1 oneTriangleKernel([[maybe_unused]] detail::PointTriangles4 four) {
+#if CFL_X86_64_V3_KERNELS
+  if (four != nullptr) return &detail::x86_64_v3::pointTriangleSquaredDistance;
+#endif
+  return &pointTriangleSquaredDistance;
+}
+
 // The closest triangle to p_M strictly within sqrt(best_squared) (the entry value), through the point's leaf
 // when it lies in the regions and has a list, else through the Bvh. best_triangle stays -1 when there is none.
 // `hint_triangle`: a triangle likely to be nearly as close as the closest (a nearby point's), or -1.
@@ -384,12 +393,7 @@ void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::
     // search minimizes, so the least is no more.
     const auto& c = model.geometry.corners[hint_triangle];
     Eigen::Vector3d q;
-#if CFL_X86_64_V3_KERNELS
-    const double d = four != nullptr ? detail::x86_64_v3::pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q)
-                                     : pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
-#else
-    const double d = pointTriangleSquaredDistance(p_M, c[0], c[1], c[2], &q);
-#endif
+    const double d = oneTriangleKernel(four)(p_M, c[0], c[1], c[2], &q);
     hint_squared = std::min(hint_squared, d);
     if (cache != nullptr) {
       // The scans take this result (the kernel of their build's bits) when they reach the triangle.

@@ -183,7 +183,8 @@ Closest closestTriangle(const CflModel& model, const Eigen::Vector3d& a, const E
         const double s0 = plane.head<3>().dot(a) - plane.w(), s1 = plane.head<3>().dot(b) - plane.w();
         const double gap = s0 > 0 && s1 > 0 ? std::min(s0, s1) : (s0 < 0 && s1 < 0 ? -std::max(s0, s1) : 0.0);
         if (gap * gap >= best.squared) continue;
-        if (segmentTriangleBelow(a, b, mesh.corners.in_leaf_order[i], plane, best.squared, best.on_segment, best.on_mesh))
+        if (segmentTriangleBelow(a, b, mesh.corners.in_leaf_order[i], plane, best.squared, best.on_segment,
+                                 best.on_mesh))
           best.triangle = mesh.bvh.triangle_ids[i];
       }
       continue;
@@ -340,9 +341,9 @@ SegmentDistance computeSegmentDistance(const CflModel& model, const Eigen::Isome
   const Eigen::Isometry3d X_MW = X_WM.inverse();
   const Eigen::Vector3d a = X_MW * p0_W, b = X_MW * p1_W;
   const Closest closest = closestTriangle(model, a, b, options.upper_bound);
-  const SegmentDistance outside =
-      closest.triangle < 0 ? SegmentDistance{}
-                           : toWorld(model, X_WM, closest.squared, closest.on_segment, closest.on_mesh, closest.triangle);
+  const SegmentDistance outside = closest.triangle < 0 ? SegmentDistance{}
+                                                       : toWorld(model, X_WM, closest.squared, closest.on_segment,
+                                                                 closest.on_mesh, closest.triangle);
   if (!options.signed_distance) return outside;
   const double tolerance =
       options.depth_tolerance > 0 ? options.depth_tolerance : 1e-6 * model.geometry.bounds.diagonal();

@@ -46,7 +46,8 @@ SphereDistance computeLeastSphereDistance(const CflModel& model, const Eigen::Is
                                           const Eigen::Vector3d* centers_W, const double* radii, std::size_t count,
                                           const PointQueryOptions& options, int* index) {
   if (!(options.upper_bound >= 0))
-    throw Error("computeLeastSphereDistance: upper_bound must be >= 0 (got " + std::to_string(options.upper_bound) + ")");
+    throw Error("computeLeastSphereDistance: upper_bound must be >= 0 (got " + std::to_string(options.upper_bound) +
+                ")");
   if (options.signed_distance)
     throw Error("computeLeastSphereDistance: unsigned only (use computeSphereDistances for signed distances)");
   for (std::size_t i = 0; i < count; ++i)

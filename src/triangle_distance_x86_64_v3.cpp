@@ -136,8 +136,9 @@ void pointTriangleSquaredDistances4(const Vec& p, const std::array<Vec, 3>* cons
   dir = blend(dir, ac, take2);
   const Lanes3 edge_closest = along(start, t, dir);
 
-  const __m256d inside = _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(s0, zero, _CMP_GE_OQ), _mm256_cmp_pd(s1, zero, _CMP_GE_OQ)),
-                                       _mm256_cmp_pd(s2, zero, _CMP_GE_OQ));
+  const __m256d inside =
+      _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(s0, zero, _CMP_GE_OQ), _mm256_cmp_pd(s1, zero, _CMP_GE_OQ)),
+                    _mm256_cmp_pd(s2, zero, _CMP_GE_OQ));
   const __m256d result = _mm256_blendv_pd(best, face_squared, inside);
   const Lanes3 point = blend(edge_closest, face_closest, inside);
   alignas(32) double xs[4], ys[4], zs[4];
@@ -200,9 +201,10 @@ struct PointBoundLanes {
     const __m256d zero = _mm256_setzero_pd();
     const __m256d point_slack = _mm256_mul_pd(slack_unit, slack_scale);
     const auto plane = [&](const double* lanes) {
-      return _mm256_fmadd_pd(_mm256_loadu_pd(lanes), p.x,
-                             _mm256_fmadd_pd(_mm256_loadu_pd(lanes + 4), p.y,
-                                             _mm256_fmsub_pd(_mm256_loadu_pd(lanes + 8), p.z, _mm256_loadu_pd(lanes + 12))));
+      return _mm256_fmadd_pd(
+          _mm256_loadu_pd(lanes), p.x,
+          _mm256_fmadd_pd(_mm256_loadu_pd(lanes + 4), p.y,
+                          _mm256_fmsub_pd(_mm256_loadu_pd(lanes + 8), p.z, _mm256_loadu_pd(lanes + 12))));
     };
     const __m256d h = _mm256_max_pd(
         _mm256_sub_pd(_mm256_sub_pd(_mm256_andnot_pd(sign_bit, plane(block + 20)), _mm256_loadu_pd(block + 84)),
@@ -348,7 +350,9 @@ void fillEdges(double* block, const std::int32_t* ids, const MeshModel& geometry
     _mm256_storeu_pd(edge, unit_m.x);
     _mm256_storeu_pd(edge + 4, unit_m.y);
     _mm256_storeu_pd(edge + 8, unit_m.z);
-    _mm256_storeu_pd(edge + 12, _mm256_add_pd(offset, _mm256_mul_pd(unit, _mm256_add_pd(radius, _mm256_andnot_pd(sign_bit, offset)))));
+    _mm256_storeu_pd(
+        edge + 12,
+        _mm256_add_pd(offset, _mm256_mul_pd(unit, _mm256_add_pd(radius, _mm256_andnot_pd(sign_bit, offset)))));
   }
   _mm256_storeu_pd(block + 84,
                    _mm256_mul_pd(unit, _mm256_add_pd(radius, _mm256_andnot_pd(sign_bit, _mm256_loadu_pd(block + 32)))));
@@ -373,7 +377,8 @@ void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& ge
     double* block = list.lanes.data() + std::size_t(b) * PointListCache::kBlock;
     const std::int32_t* ids = list.ids.data() + 4 * std::size_t(b);
     // The block's entries before the first whose bound reaches the best (as scanPointList).
-    const int stop = _mm256_movemask_pd(_mm256_cmp_pd(_mm256_loadu_pd(block), _mm256_set1_pd(best_squared), _CMP_GE_OQ));
+    const int stop =
+        _mm256_movemask_pd(_mm256_cmp_pd(_mm256_loadu_pd(block), _mm256_set1_pd(best_squared), _CMP_GE_OQ));
     const int count = stop ? __builtin_ctz(unsigned(stop)) : 4;
     if (count > 0) {
       const Lanes3 center{_mm256_loadu_pd(block + 4), _mm256_loadu_pd(block + 8), _mm256_loadu_pd(block + 12)};

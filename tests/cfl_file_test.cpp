@@ -20,6 +20,8 @@
 #include <functional>
 #include <iterator>
 #include <limits>
+#include <sstream>
+#include <streambuf>
 #include <string>
 #include <vector>
 
@@ -382,31 +384,38 @@ void expectRefused(const Bytes& bytes, const std::string& expected) {
   }
 }
 
-// Expects `model` to be refused by the loader (written with writeUnchecked) and by the writer, both with
-// `expected` in the message.
-void expectModelRefused(const CflModel& model, const std::string& expected) {
-  expectRefused(writeUnchecked(model), expected);
-  try {
-    serializeCflModel(model);
-    ADD_FAILURE() << "saved a model that should be refused (" << expected << ")";
-  } catch (const Error& error) {
-    EXPECT_NE(std::string(error.what()).find(expected), std::string::npos)
-        << "expected '" << expected << "' in: " << error.what();
+// Expects both writers, to memory and to a stream, to refuse `model` with `expected` in the message, and the
+// stream writer to write nothing.
+void expectWritersRefuse(const CflModel& model, const std::string& expected) {
+  for (bool to_stream : {false, true}) {
+    SCOPED_TRACE(to_stream ? "writeCflModel" : "serializeCflModel");
+    std::ostringstream stream;
+    try {
+      if (to_stream) {
+        writeCflModel(model, stream);
+      } else {
+        serializeCflModel(model);
+      }
+      ADD_FAILURE() << "saved a model that should be refused (" << expected << ")";
+    } catch (const Error& error) {
+      const std::string message = error.what();
+      EXPECT_EQ(message.rfind("cannot save CFL model: ", 0), 0u) << message;
+      EXPECT_NE(message.find(expected), std::string::npos) << "expected '" << expected << "' in: " << message;
+    }
+    EXPECT_TRUE(stream.str().empty());
   }
 }
 
-// Expects serializeCflModel to refuse `model` with `expected` in the message, for defects that the file
-// cannot even express (it stores one leaf count for the three leaf arrays).
-void expectSaveRefused(const CflModel& model, const std::string& expected) {
-  try {
-    serializeCflModel(model);
-    ADD_FAILURE() << "saved a model that should be refused (" << expected << ")";
-  } catch (const Error& error) {
-    const std::string message = error.what();
-    EXPECT_EQ(message.rfind("cannot save CFL model: ", 0), 0u) << message;
-    EXPECT_NE(message.find(expected), std::string::npos) << "expected '" << expected << "' in: " << message;
-  }
+// Expects `model` to be refused by the loader (written with writeUnchecked) and by the writers, all with
+// `expected` in the message.
+void expectModelRefused(const CflModel& model, const std::string& expected) {
+  expectRefused(writeUnchecked(model), expected);
+  expectWritersRefuse(model, expected);
 }
+
+// Expects the writers to refuse `model` with `expected` in the message, for defects that the file cannot
+// even express (it stores one leaf count for the three leaf arrays).
+void expectSaveRefused(const CflModel& model, const std::string& expected) { expectWritersRefuse(model, expected); }
 
 std::string temporaryPath(const std::string& stem) {
   return (std::filesystem::temp_directory_path() /
@@ -443,6 +452,80 @@ TEST(CflFile, LoadedModelAnswersEveryQueryBitIdentically) {
     EXPECT_EQ(bytes, serializeCflModel(loaded));
   }
   EXPECT_TRUE(some_refined) << "no adaptive model was refined: the tree part of the format went untested";
+}
+
+// An output stream buffer like a pipe's: it keeps what it is given, fails every seek (and counts the
+// attempts), and fails for good once `capacity` bytes are written.
+class PipeBuffer : public std::streambuf {
+ public:
+  explicit PipeBuffer(std::size_t capacity = std::numeric_limits<std::size_t>::max()) : capacity_(capacity) {}
+  Bytes bytes;
+  int seeks = 0;
+  int writes = 0;
+
+ protected:
+  std::streamsize xsputn(const char* data, std::streamsize count) override {
+    ++writes;
+    const std::size_t taken = std::min(static_cast<std::size_t>(count), capacity_ - bytes.size());
+    bytes.insert(bytes.end(), data, data + taken);
+    return static_cast<std::streamsize>(taken);
+  }
+  int_type overflow(int_type c) override {
+    if (traits_type::eq_int_type(c, traits_type::eof())) return traits_type::not_eof(c);
+    const char byte = traits_type::to_char_type(c);
+    return xsputn(&byte, 1) == 1 ? c : traits_type::eof();
+  }
+  pos_type seekoff(off_type, std::ios_base::seekdir, std::ios_base::openmode) override {
+    ++seeks;
+    return pos_type(off_type(-1));
+  }
+  pos_type seekpos(pos_type, std::ios_base::openmode) override {
+    ++seeks;
+    return pos_type(off_type(-1));
+  }
+
+ private:
+  std::size_t capacity_;
+};
+
+TEST(CflFile, StreamWriterWritesTheSerializedBytesInPiecesWithoutSeeking) {
+  const CflModel bunny = build(test::loadBunny(), 20);
+  for (const CflModel* model : {&smallModel(), &adaptiveModel(), &bunny}) {
+    const Bytes expected = serializeCflModel(*model);
+    PipeBuffer pipe;
+    std::ostream stream(&pipe);
+    writeCflModel(*model, stream);
+    EXPECT_TRUE(stream.good());
+    EXPECT_EQ(pipe.seeks, 0);
+    EXPECT_EQ(pipe.bytes, expected);
+    if (model == &bunny) {
+      // Held whole, the file would be one write; streamed, no piece is much larger than the largest array.
+      ASSERT_GT(expected.size(), std::size_t(1) << 20);
+      EXPECT_GT(pipe.writes, 4);
+    }
+  }
+}
+
+TEST(CflFile, StreamWriteFailureIsReportedAndLeavesAFileTheLoaderRefuses) {
+  const CflModel& model = adaptiveModel();
+  const Bytes expected = serializeCflModel(model);
+  for (std::size_t capacity : {std::size_t(0), std::size_t(31), std::size_t(100), expected.size() / 2,
+                               expected.size() - 1}) {
+    SCOPED_TRACE("capacity " + std::to_string(capacity));
+    PipeBuffer pipe(capacity);
+    std::ostream stream(&pipe);
+    try {
+      writeCflModel(model, stream);
+      ADD_FAILURE() << "no error from a stream that failed";
+    } catch (const Error& error) {
+      EXPECT_NE(std::string(error.what()).find("the stream failed after"), std::string::npos) << error.what();
+      EXPECT_NE(std::string(error.what()).find("of " + std::to_string(expected.size()) + " bytes"), std::string::npos)
+          << error.what();
+    }
+    ASSERT_EQ(pipe.bytes.size(), capacity);
+    EXPECT_TRUE(std::equal(pipe.bytes.begin(), pipe.bytes.end(), expected.begin()));
+    EXPECT_THROW(deserializeCflModel(pipe.bytes.data(), pipe.bytes.size(), kName), Error);
+  }
 }
 
 TEST(CflFile, SaveThenLoadThroughTheFileSystemGivesTheSameModel) {

@@ -32,6 +32,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <iosfwd>
 #include <string>
 #include <vector>
 
@@ -40,7 +41,8 @@ namespace cfl {
 /// The version written and read by this library.
 constexpr std::uint32_t kCflFileVersion = 4;
 
-/// The model as the bytes of a version-4 file. O(model size); thread-safe (reads `model` only).
+/// The model as the bytes of a version-4 file, in memory (writeCflModel and saveCflModel write the same bytes
+/// without holding them). O(model size); thread-safe (reads `model` only).
 /// Throws cfl::Error when the mesh fails validateMesh, or (the message starting "cannot save CFL model: ")
 /// when the model breaks an invariant that the loader checks, so that no file is written that the loader
 /// would refuse: e.g. a list holding a triangle id out of range, or a node pointing back.
@@ -74,13 +76,23 @@ std::vector<unsigned char> serializeCflModel(const CflModel& model);
 /// Time and extra memory are linear in `size`; the Bvh is rebuilt, O(n log n) in the triangle count.
 CflModel deserializeCflModel(const unsigned char* data, std::size_t size, const std::string& name_for_errors);
 
+/// Writes the bytes of serializeCflModel(model) to `stream`, in order and without seeking (a pipe or socket
+/// will do), and without holding the file in memory: extra memory is a 64 KiB buffer plus the validation's
+/// O(node count) scratch. The model is read twice, first for the payload checksum that the header holds, so
+/// it must not change meanwhile; concurrent readers are fine. Time is linear in the model size.
+/// Throws cfl::Error, before writing anything, when the model is refused as by serializeCflModel, or
+/// ("writing a CFL model: the stream failed after N of M bytes") when a write fails; the stream then holds
+/// a truncated file, which the loader refuses.
+void writeCflModel(const CflModel& model, std::ostream& stream);
+
 /// Writes `model` to `path` (replacing it) through a temporary file in the same directory that is renamed
-/// into place, so readers never see a half-written file. Throws cfl::Error naming the path when the file
-/// cannot be written.
+/// into place, so readers never see a half-written file; as writeCflModel, the file is never held in memory.
+/// Throws cfl::Error when the model is refused (as by serializeCflModel; no file is created) or naming the
+/// path when the file cannot be written.
 void saveCflModel(const CflModel& model, const std::string& path);
 
 /// Reads a model saved by saveCflModel. Throws cfl::Error naming `path` when the file cannot be read or is
-/// not a valid version-3 CFL file (see deserializeCflModel for what is checked).
+/// not a valid version-4 CFL file (see deserializeCflModel for what is checked).
 CflModel loadCflModel(const std::string& path);
 
 namespace detail {

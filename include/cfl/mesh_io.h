@@ -1,8 +1,8 @@
 #pragma once
 /// @file
 /// Reading triangle meshes from files: OBJ and ASCII STL natively, in double precision; binary STL, PLY,
-/// OFF, glTF, Collada and every other format assimp reads through assimp. Part of the separate library cfl::cfl_io, which links
-/// assimp; the core does not.
+/// OFF, glTF, Collada and every other format assimp reads through assimp. Part of the separate library
+/// cfl::cfl_io, which links assimp; the core does not.
 
 #include "cfl/mesh.h"
 

@@ -43,7 +43,8 @@ struct MeshClosure {
   std::int64_t inconsistent_edges = 0;   ///< Edges whose two triangles traverse it in the same direction.
   /// Zero area: collinear or repeated corners (the normal, computed in twice the working precision, is zero).
   std::int64_t degenerate_triangles = 0;
-  std::int64_t intersecting_pairs = 0;   ///< Pairs of triangles without a common vertex that intersect (counted up to 1000).
+  /// Pairs of triangles without a common vertex that intersect (counted up to 1000).
+  std::int64_t intersecting_pairs = 0;
   /// +1 when the triangles wind counterclockwise seen from outside (positive enclosed volume), -1 when the mesh
   /// is inside out; signs account for it, so an inside-out closed mesh is still signed correctly.
   int orientation = 1;
@@ -57,7 +58,8 @@ struct MeshClosure {
 /// order about `center`. Frame M.
 struct WindingDipole {
   Eigen::Vector3d center = Eigen::Vector3d::Zero();      ///< Area-weighted centroid of the triangles.
-  Eigen::Vector3d area_normal = Eigen::Vector3d::Zero();  ///< Sum of the triangles' area vectors (area times unit normal).
+  /// Sum of the triangles' area vectors (area times unit normal).
+  Eigen::Vector3d area_normal = Eigen::Vector3d::Zero();
   /// Sum over the triangles of area vector * (centroid - center)^T: the second-order term.
   Eigen::Matrix3d moment = Eigen::Matrix3d::Zero();
   double radius = 0;  ///< Every vertex below the node lies within this of `center`.
@@ -108,8 +110,9 @@ const WindingField& windingField(const MeshModel& model, const MeshSign& sign);
 std::int64_t memoryBytes(const MeshSign& sign);
 
 /// Analyses `model`'s mesh: welding, edges, orientation, degenerate triangles, self-intersections (through
-/// its Bvh), pseudonormals (the winding number's far field comes later, on demand). O(n log n) on one thread; deterministic. Never
-/// throws for a valid MeshModel: a mesh that cannot be signed gets closed == false and a reason.
+/// its Bvh), pseudonormals (the winding number's far field comes later, on demand). O(n log n) on one
+/// thread; deterministic. Never throws for a valid MeshModel: a mesh that cannot be signed gets closed ==
+/// false and a reason.
 MeshSign analyzeMeshSign(const MeshModel& model);
 
 /// The generalized winding number of the mesh around p (frame M): 1 inside a closed outward mesh (-1 inside an

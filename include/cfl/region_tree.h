@@ -151,7 +151,8 @@ struct RegionTree {
       for (std::ptrdiff_t n = 0; n < count; ++n) visit(n, base + std::int32_t(low[n]));
     } else {
       const std::uint16_t* high = list_high_ids.data() + std::uint32_t(~base);
-      for (std::ptrdiff_t n = 0; n < count; ++n) visit(n, std::int32_t(std::uint32_t(low[n]) | std::uint32_t(high[n]) << 16));
+      for (std::ptrdiff_t n = 0; n < count; ++n)
+        visit(n, std::int32_t(std::uint32_t(low[n]) | std::uint32_t(high[n]) << 16));
     }
   }
   /// Appends a list of `length` triangle ids (>= 0) with their entry bounds, already sorted by (bound, id);
@@ -206,14 +207,15 @@ struct RegionTree {
       const double clamped = q[axis] >= 0 ? (q[axis] < top ? q[axis] : top) : 0.0;  // NaN goes to 0
       fixed[axis] = static_cast<std::int64_t>(clamped);
     }
-    std::uint32_t node = std::uint32_t((fixed[0] >> kFraction) +
-                                       std::int64_t(root_dims[0]) * ((fixed[1] >> kFraction) +
-                                                                     std::int64_t(root_dims[1]) * (fixed[2] >> kFraction)));
+    std::uint32_t node = std::uint32_t(
+        (fixed[0] >> kFraction) +
+        std::int64_t(root_dims[0]) * ((fixed[1] >> kFraction) + std::int64_t(root_dims[1]) * (fixed[2] >> kFraction)));
     int depth = 0;
     std::uint32_t value = nodes[node];
     while (!(value & kLeafBit) && depth < kFraction) {
       const int shift = kFraction - 1 - depth;
-      const std::uint32_t octant = std::uint32_t((fixed[0] >> shift) & 1) | std::uint32_t((fixed[1] >> shift) & 1) << 1 |
+      const std::uint32_t octant = std::uint32_t((fixed[0] >> shift) & 1) |
+                                   std::uint32_t((fixed[1] >> shift) & 1) << 1 |
                                    std::uint32_t((fixed[2] >> shift) & 1) << 2;
       value = nodes[value + octant];
       ++depth;

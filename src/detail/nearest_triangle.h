@@ -71,7 +71,8 @@ inline void nearestTriangleCompact(const MeshModel& model, const Eigen::Vector3d
   const auto boxSquared = [&p](const CompactBvhNode& node) {
     double sum = 0;
     for (int axis = 0; axis < 3; ++axis) {
-      const double gap = std::max(double(node.min[axis]) - p[axis], 0.0) + std::max(p[axis] - double(node.max[axis]), 0.0);
+      const double gap =
+          std::max(double(node.min[axis]) - p[axis], 0.0) + std::max(p[axis] - double(node.max[axis]), 0.0);
       sum += gap * gap;
     }
     return sum;
@@ -285,7 +286,8 @@ inline void nearestTriangleCompactBounded(const MeshModel& model, const Eigen::V
   const auto boxSquared = [&p](const CompactBvhNode& node) {
     double sum = 0;
     for (int axis = 0; axis < 3; ++axis) {
-      const double gap = std::max(double(node.min[axis]) - p[axis], 0.0) + std::max(p[axis] - double(node.max[axis]), 0.0);
+      const double gap =
+          std::max(double(node.min[axis]) - p[axis], 0.0) + std::max(p[axis] - double(node.max[axis]), 0.0);
       sum += gap * gap;
     }
     return sum;
@@ -319,7 +321,8 @@ inline void nearestTriangleCompactBounded(const MeshModel& model, const Eigen::V
         const double height = std::abs(plane.head<3>().dot(p) - plane[3]) -
                               1e-13 * (scale + std::abs(plane[3]) + sphere[3]);
         if (height * kShrink >= best) continue;
-        if (tests.add(p, model.corners.in_leaf_order[i], model.bvh.triangle_ids[i], best_squared, best_triangle, closest)) {
+        if (tests.add(p, model.corners.in_leaf_order[i], model.bvh.triangle_ids[i], best_squared, best_triangle,
+                      closest)) {
           best = std::sqrt(best_squared);
         }
       }

@@ -89,6 +89,9 @@ const std::vector<std::unique_ptr<Shape>>& shapes() {
     // Flat and thin: long lists whose entries mostly pass the spheres, where the x86-64-v3 build filters
     // them four at a time.
     v.push_back(makeShape("plate", test::makeThinPlate(1.0, 0.05, 12), 12));
+    // Tiny triangles fanned to huge slivers: the slivers pass the spheres, planes and boxes of most list
+    // entries, and the x86-64-v3 build takes their edge axes four at a time too.
+    v.push_back(makeShape("refined_slab", test::makeLocallyRefinedSlab(10), 12));
     v.push_back(makeShape("bunny", test::loadBunny(), 24));
     return v;
   }();

@@ -218,6 +218,39 @@ TriangleMesh makeThinPlate(double size, double thickness, int n) {
   return mesh;
 }
 
+TriangleMesh makeLocallyRefinedSlab(int n) {
+  TriangleMesh mesh;
+  auto vertex = [&](const Eigen::Vector3d& p) {
+    mesh.vertices.push_back(p);
+    return static_cast<int>(mesh.vertices.size()) - 1;
+  };
+  const int first = static_cast<int>(mesh.vertices.size());
+  for (int j = 0; j <= n; ++j) {
+    for (int i = 0; i <= n; ++i) vertex(Eigen::Vector3d(4.9 + 0.2 * i / n, 4.9 + 0.2 * j / n, 1.0));
+  }
+  auto patch = [&](int i, int j) { return first + i + (n + 1) * j; };
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) addQuad(mesh, patch(i, j), patch(i + 1, j), patch(i + 1, j + 1), patch(i, j + 1));
+  }
+  const int top[4] = {vertex(Eigen::Vector3d(0, 0, 1)), vertex(Eigen::Vector3d(10, 0, 1)),
+                      vertex(Eigen::Vector3d(10, 10, 1)), vertex(Eigen::Vector3d(0, 10, 1))};
+  for (int side = 0; side < 4; ++side) {
+    // The patch's boundary along this side, from the end near top[side] to the end near the next corner.
+    std::vector<int> edge;
+    for (int k = 0; k <= n; ++k) {
+      edge.push_back(side == 0 ? patch(k, 0) : side == 1 ? patch(n, k) : side == 2 ? patch(n - k, n) : patch(0, n - k));
+    }
+    const int a = top[side], c = top[(side + 1) % 4];
+    for (int k = 0; k < n; ++k) mesh.triangles.push_back({k < n / 2 ? a : c, edge[k + 1], edge[k]});
+    mesh.triangles.push_back({a, c, edge[n / 2]});
+  }
+  const int bottom[4] = {vertex(Eigen::Vector3d(0, 0, 0)), vertex(Eigen::Vector3d(10, 0, 0)),
+                         vertex(Eigen::Vector3d(10, 10, 0)), vertex(Eigen::Vector3d(0, 10, 0))};
+  addQuad(mesh, bottom[0], bottom[3], bottom[2], bottom[1]);
+  for (int s = 0; s < 4; ++s) addQuad(mesh, bottom[s], bottom[(s + 1) % 4], top[(s + 1) % 4], top[s]);
+  return mesh;
+}
+
 TriangleMesh makeBox(const Eigen::Vector3d& min, const Eigen::Vector3d& max) {
   TriangleMesh mesh;
   for (int k = 0; k < 8; ++k) {

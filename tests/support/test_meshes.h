@@ -64,6 +64,11 @@ TriangleMesh makeSelfIntersectingMesh(int major_segments = 16, int minor_segment
 /// two triangles each, welded to the other by a strip of quads around the rim (4 n (n + 2) triangles).
 TriangleMesh makeThinPlate(double size = 1.0, double thickness = 0.05, int n = 12);
 
+/// A closed slab [0, 10]^2 x [0, 1] whose top carries an n x n grid of tiny quads on [4.9, 5.1]^2, joined to
+/// the top's corners by fans of long slivers: tiny triangles next to huge thin ones, as adaptive remeshers
+/// leave them (2 n^2 + 4 n + 14 triangles).
+TriangleMesh makeLocallyRefinedSlab(int n = 10);
+
 /// A closed axis-aligned box, 12 triangles.
 TriangleMesh makeBox(const Eigen::Vector3d& min, const Eigen::Vector3d& max);
 

@@ -381,13 +381,14 @@ void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& ge
     const int count = stop ? __builtin_ctz(unsigned(stop)) : 4;
     if (count > 0) {
       int pass;
+      const Lanes3 center{_mm256_loadu_pd(block + 4), _mm256_loadu_pd(block + 8), _mm256_loadu_pd(block + 12)};
       if (!std::isnan(block[84])) {
-        // Once laid out, the prism bound replaces the plane's, which it never falls below.
-        const Lanes3 center{_mm256_loadu_pd(block + 4), _mm256_loadu_pd(block + 8), _mm256_loadu_pd(block + 12)};
+        // Once laid out, the prism bound stands in for the plane's: a valid bound on its own, with the same
+        // height and slack, so no lower than the plane's but for rounding. The sphere's still rejects some
+        // triangles the prism lets through.
         pass = _mm256_movemask_pd(lanes.nearSphere(center, _mm256_loadu_pd(block + 16), best)) & ((1 << count) - 1);
         if (pass != 0) pass &= lanes.passingPrism(block, best_squared);
       } else {
-        const Lanes3 center{_mm256_loadu_pd(block + 4), _mm256_loadu_pd(block + 8), _mm256_loadu_pd(block + 12)};
         const Lanes3 normal{_mm256_loadu_pd(block + 20), _mm256_loadu_pd(block + 24), _mm256_loadu_pd(block + 28)};
         pass = lanes.passing(center, _mm256_loadu_pd(block + 16), normal, _mm256_loadu_pd(block + 32), best) &
                ((1 << count) - 1);

@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -110,7 +111,7 @@ class LeafPrefetcher {
 };
 
 // The bits 0..9 of v spread to bits 0, 3, ..., 27.
-inline std::uint32_t spreadBits(std::uint32_t v) {
+constexpr std::uint32_t spreadBits(std::uint32_t v) {
   v &= 0x3ffu;
   v = (v | v << 16) & 0x030000ffu;
   v = (v | v << 8) & 0x0300f00fu;
@@ -119,6 +120,13 @@ inline std::uint32_t spreadBits(std::uint32_t v) {
   return v;
 }
 
+// spreadBits of every 10-bit value: a load per axis instead of the shifts and masks, for every point of a batch.
+constexpr std::array<std::uint32_t, 1024> kSpreadBits = [] {
+  std::array<std::uint32_t, 1024> table{};
+  for (std::uint32_t v = 0; v < 1024; ++v) table[v] = spreadBits(v);
+  return table;
+}();
+
 // Callers' points come in any order, often random: consecutive queries then touch unrelated leaves, lists
 // and triangles, each a cache miss in arrays of many megabytes. Queried along a Morton curve (10 bits per
 // axis over the regions' box, where the lists are; points outside share its border cells), neighbours in
@@ -126,11 +134,12 @@ inline std::uint32_t spreadBits(std::uint32_t v) {
 // Returns the point indices in that order (an LSD radix sort, three passes of 10 bits: linear, stable, so
 // the order is deterministic), or nothing when the batch is too small or too large to index in 32 bits.
 // forEachBlock(body) calls body(begin, end) over blocks covering [0, count), on the batch's threads: the
-// keys, the part of the sort that costs arithmetic, are computed there.
+// keys, the part of the sort that costs arithmetic, are computed there. The arrays are left uninitialized
+// (every element is written before it is read): zeroing them cost as much as a pass.
 template <class ForEachBlock>
-std::vector<std::uint32_t> spatialOrder(const CflModel& model, const Eigen::Isometry3d& X_WM,
-                                        const Eigen::Vector3d* points_W, std::size_t count,
-                                        ForEachBlock&& forEachBlock) {
+std::unique_ptr<std::uint32_t[]> spatialOrder(const CflModel& model, const Eigen::Isometry3d& X_WM,
+                                              const Eigen::Vector3d* points_W, std::size_t count,
+                                              ForEachBlock&& forEachBlock) {
   constexpr std::size_t kMinimum = 256;  // a few leaves' worth: little to share, and the histograms' fixed cost
   if (count < kMinimum || count > std::size_t(std::numeric_limits<std::uint32_t>::max())) return {};
   const Aabb box = model.regions.nodes.empty() ? model.geometry.bounds : model.regions.bounds();
@@ -139,29 +148,39 @@ std::vector<std::uint32_t> spatialOrder(const CflModel& model, const Eigen::Isom
   const double scale = 1024 / extent;
   const Eigen::Isometry3d X_MW = X_WM.inverse(Eigen::Isometry);
   // (key << 32 | index): one 8-byte word per point moves in each pass.
-  std::vector<std::uint64_t> items(count), scratch(count);
+  std::unique_ptr<std::uint64_t[]> items(new std::uint64_t[count]), scratch(new std::uint64_t[count]);
   forEachBlock([&](std::size_t begin, std::size_t end) {
     for (std::size_t i = begin; i != end; ++i) {
       const Eigen::Vector3d q = (X_MW * points_W[i] - low) * scale;
       std::uint32_t cell[3];
       for (int axis = 0; axis < 3; ++axis) cell[axis] = std::uint32_t(std::clamp(q[axis], 0.0, 1023.0));
-      const std::uint32_t key = spreadBits(cell[0]) | spreadBits(cell[1]) << 1 | spreadBits(cell[2]) << 2;
+      const std::uint32_t key = kSpreadBits[cell[0]] | kSpreadBits[cell[1]] << 1 | kSpreadBits[cell[2]] << 2;
       items[i] = std::uint64_t(key) << 32 | i;
     }
   });
   std::array<std::array<std::uint32_t, 1024>, 3> histogram{};
-  for (const std::uint64_t item : items) {
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::uint64_t item = items[i];
     for (int pass = 0; pass < 3; ++pass) ++histogram[pass][(item >> (32 + 10 * pass)) & 0x3ffu];
   }
   for (int pass = 0; pass < 3; ++pass) {
     std::uint32_t sum = 0;
     for (std::uint32_t& bucket : histogram[pass]) sum += std::exchange(bucket, sum);
+  }
+  for (int pass = 0; pass < 2; ++pass) {
     const int shift = 32 + 10 * pass;
-    for (const std::uint64_t item : items) scratch[histogram[pass][(item >> shift) & 0x3ffu]++] = item;
+    for (std::size_t i = 0; i < count; ++i) {
+      const std::uint64_t item = items[i];
+      scratch[histogram[pass][(item >> shift) & 0x3ffu]++] = item;
+    }
     items.swap(scratch);
   }
-  std::vector<std::uint32_t> order(count);
-  for (std::size_t i = 0; i < count; ++i) order[i] = std::uint32_t(items[i]);
+  // The last pass places the indices alone.
+  std::unique_ptr<std::uint32_t[]> order(new std::uint32_t[count]);
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::uint64_t item = items[i];
+    order[histogram[2][(item >> 52) & 0x3ffu]++] = std::uint32_t(item);
+  }
   return order;
 }
 
@@ -598,9 +617,9 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   // detail::parallelChunks, as computeDistances: each task writes only its own outputs, so they do not depend
   // on the schedule.
   auto inParallel = [&](std::size_t chunk, auto&& body) { detail::parallelChunks(count, threads, chunk, body); };
-  const std::vector<std::uint32_t> order =
+  const std::unique_ptr<std::uint32_t[]> order =
       spatialOrder(model, X_WM, points_W, count, [&](auto&& body) { inParallel(4096, body); });
-  const std::uint32_t* ordered = order.empty() ? nullptr : order.data();
+  const std::uint32_t* ordered = order.get();
   // Queries positions [begin, end) of the walk; each answer goes to its caller's index.
   auto queryRange = [&](std::size_t begin, std::size_t end) {
     if (ordered) {

@@ -177,17 +177,21 @@ struct PointBoundLanes {
   // The lanes (bit k for triangle k, all four tested) whose sphere (center c, radius r) and plane (normal n,
   // offset w) both let them through at the best distance `best`.
   int passing(const Lanes3& c, __m256d r, const Lanes3& n, __m256d w, double best) const {
-    const Lanes3 offset = sub(p, c);
-    const __m256d reach_squared = dot(offset, offset);
-    const __m256d rim = _mm256_add_pd(r, _mm256_set1_pd(best));
-    const __m256d near_sphere =
-        _mm256_cmp_pd(_mm256_mul_pd(reach_squared, shrink), _mm256_mul_pd(rim, rim), _CMP_NGE_UQ);
+    const __m256d near_sphere = nearSphere(c, r, best);
     const __m256d along_normal = _mm256_sub_pd(dot(n, p), w);
     const __m256d slack =
         _mm256_mul_pd(slack_unit, _mm256_add_pd(_mm256_add_pd(slack_scale, _mm256_andnot_pd(sign_bit, w)), r));
     const __m256d height = _mm256_sub_pd(_mm256_andnot_pd(sign_bit, along_normal), slack);
     const __m256d near_plane = _mm256_cmp_pd(_mm256_mul_pd(height, shrink), _mm256_set1_pd(best), _CMP_NGE_UQ);
     return _mm256_movemask_pd(_mm256_and_pd(near_sphere, near_plane));
+  }
+
+  // The sphere bound of `passing` alone, as a lane mask.
+  __m256d nearSphere(const Lanes3& c, __m256d r, double best) const {
+    const Lanes3 offset = sub(p, c);
+    const __m256d reach_squared = dot(offset, offset);
+    const __m256d rim = _mm256_add_pd(r, _mm256_set1_pd(best));
+    return _mm256_cmp_pd(_mm256_mul_pd(reach_squared, shrink), _mm256_mul_pd(rim, rim), _CMP_NGE_UQ);
   }
 
   // The lanes of a cached block (PointListCache) whose prism bound lets them through at `best_squared`: the
@@ -381,13 +385,22 @@ void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& ge
         _mm256_movemask_pd(_mm256_cmp_pd(_mm256_loadu_pd(block), _mm256_set1_pd(best_squared), _CMP_GE_OQ));
     const int count = stop ? __builtin_ctz(unsigned(stop)) : 4;
     if (count > 0) {
+      int pass;
       const Lanes3 center{_mm256_loadu_pd(block + 4), _mm256_loadu_pd(block + 8), _mm256_loadu_pd(block + 12)};
-      const Lanes3 normal{_mm256_loadu_pd(block + 20), _mm256_loadu_pd(block + 24), _mm256_loadu_pd(block + 28)};
-      int pass = lanes.passing(center, _mm256_loadu_pd(block + 16), normal, _mm256_loadu_pd(block + 32), best) &
-                 ((1 << count) - 1);
-      if (pass != 0) {
-        if (std::isnan(block[84])) fillEdges(block, ids, geometry);
-        pass &= lanes.passingPrism(block, best_squared);
+      if (!std::isnan(block[84])) {
+        // Once laid out, the prism bound stands in for the plane's: a valid bound on its own, with the same
+        // height and slack, so no lower than the plane's but for rounding. The sphere's still rejects some
+        // triangles the prism lets through.
+        pass = _mm256_movemask_pd(lanes.nearSphere(center, _mm256_loadu_pd(block + 16), best)) & ((1 << count) - 1);
+        if (pass != 0) pass &= lanes.passingPrism(block, best_squared);
+      } else {
+        const Lanes3 normal{_mm256_loadu_pd(block + 20), _mm256_loadu_pd(block + 24), _mm256_loadu_pd(block + 28)};
+        pass = lanes.passing(center, _mm256_loadu_pd(block + 16), normal, _mm256_loadu_pd(block + 32), best) &
+               ((1 << count) - 1);
+        if (pass != 0) {
+          fillEdges(block, ids, geometry);
+          pass &= lanes.passingPrism(block, best_squared);
+        }
       }
       addPassing(pass, p, [&](int k) -> const auto& { return corners[ids[k]]; }, [&](int k) { return ids[k]; }, tests,
                  best_squared, best_triangle, &closest, best);

@@ -376,6 +376,79 @@ TEST(PointQuery, BatchOnCellBoundariesEqualsSerial) {
   }
 }
 
+// Crowds of points in a few leaves with long lists, each point repeated at scattered places, the whole in a
+// shuffled order, queried through two poses: the batch reorders the points along its curve and shares each
+// leaf's list and hints among the points of a crowd, and every answer must still land at its own point's
+// index. Checked against brute force (distance, and a closest point on the reported triangle at that
+// distance from the point), against the serial call bit for bit, and equal across duplicates.
+TEST(PointQuery, BatchCrowdsInOneLeafKeepTheCallersOrder) {
+  test::Rng rng(71);
+  const CflModel model = buildCflModel(test::makeTorusKnot(2, 3, 1.0, 0.3, 48, 6));
+  const MeshModel& geometry = model.geometry;
+  const Aabb box = model.regions.bounds();
+  std::uniform_real_distribution<double> unit(0, 1);
+  // Leaves with the longest lists among those a few random points fall in: many candidates per point, so
+  // that results from another point of the crowd would be wrong.
+  std::vector<RegionCell> crowded;
+  while (crowded.size() < 3) {
+    Eigen::Vector3d p;
+    for (int axis = 0; axis < 3; ++axis) p[axis] = box.min[axis] + unit(rng) * (box.max[axis] - box.min[axis]);
+    const RegionCell cell = model.regions.locate(p);
+    if (model.regions.hasList(cell.leaf) && model.regions.leafListLength(cell.leaf) >= 8) crowded.push_back(cell);
+  }
+  std::vector<Eigen::Vector3d> points_M;
+  for (const RegionCell& cell : crowded) {
+    for (int k = 0; k < 300; ++k) {
+      points_M.push_back(cell.min_corner + cell.size * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
+    }
+  }
+  const std::size_t distinct = points_M.size();
+  for (std::size_t k = 0; k < distinct; k += 3) points_M.push_back(points_M[k]);  // duplicates
+  std::vector<std::size_t> original(points_M.size());
+  for (std::size_t i = 0; i < original.size(); ++i) original[i] = i < distinct ? i : 3 * (i - distinct);
+  for (std::size_t i = points_M.size() - 1; i > 0; --i) {
+    const std::size_t j = std::uniform_int_distribution<std::size_t>(0, i)(rng);
+    std::swap(points_M[i], points_M[j]);
+    std::swap(original[i], original[j]);
+  }
+  for (const Eigen::Isometry3d& X_WM : {Eigen::Isometry3d(Eigen::Isometry3d::Identity()), test::randomPose(rng, 3.0)}) {
+    std::vector<Eigen::Vector3d> points_W;
+    for (const Eigen::Vector3d& p_M : points_M) points_W.push_back(X_WM * p_M);
+    for (bool signed_distance : {false, true}) {
+      PointQueryOptions options;
+      options.signed_distance = signed_distance;
+      options.threads = 1;
+      std::vector<PointDistance> batch(points_W.size());
+      computePointDistances(model, X_WM, points_W.data(), points_W.size(), batch.data(), options);
+      std::vector<const PointDistance*> first(distinct, nullptr);
+      for (std::size_t i = 0; i < points_W.size(); ++i) {
+        const PointDistance& r = batch[i];
+        const double brute = std::sqrt(bruteForceSquared(geometry, points_M[i]));
+        ASSERT_NEAR(std::abs(r.distance), brute, 1e-12) << i;
+        ASSERT_GE(r.triangle, 0) << i;
+        const auto& c = geometry.corners[r.triangle];
+        Eigen::Vector3d on_triangle;
+        pointTriangleSquaredDistance(points_M[i], c[0], c[1], c[2], &on_triangle);
+        ASSERT_LT((X_WM * on_triangle - r.closest_point).norm(), 1e-12) << i;
+        ASSERT_NEAR((points_W[i] - r.closest_point).norm(), brute, 1e-12) << i;
+        const PointDistance serial = computePointDistance(model, X_WM, points_W[i], options);
+        ASSERT_EQ(std::memcmp(&r.distance, &serial.distance, sizeof(double)), 0) << i;
+        ASSERT_EQ(r.triangle, serial.triangle) << i;
+        ASSERT_EQ(r.closest_point, serial.closest_point) << i;
+        ASSERT_EQ(r.gradient, serial.gradient) << i;
+        const PointDistance*& twin = first[original[i]];
+        if (twin == nullptr) {
+          twin = &r;
+        } else {
+          ASSERT_EQ(std::memcmp(&r.distance, &twin->distance, sizeof(double)), 0) << i;
+          ASSERT_EQ(r.triangle, twin->triangle) << i;
+          ASSERT_EQ(r.closest_point, twin->closest_point) << i;
+        }
+      }
+    }
+  }
+}
+
 TEST(PointQuery, ConcurrentCallersGetTheSerialAnswers) {
   test::Rng rng(17);
   const CflModel model = buildCflModel(test::makeTorusKnot(2, 3, 1.0, 0.3, 48, 6));

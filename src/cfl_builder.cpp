@@ -185,7 +185,9 @@ Topology makeTopology(const MeshModel& geometry) {
 // of the triangle with corners c, with a margin so that rounding never decides. Each half-space is linear, so
 // its lowest value over the cube is at a corner: the center's value minus the reach, half edge times the
 // 1-norm of its normal plus the margin times its 2-norm. The 2-norm (a square root) is taken only when the
-// center clears the 1-norm part, which adding a nonnegative margin can only raise.
+// center clears the 1-norm part, which adding a nonnegative margin can only raise, and clears it by less than
+// the margin times twice the 1-norm: the 2-norm is at most the 1-norm, and rounding preserves order, so
+// clearing that larger reach answers the same.
 // Always inlined, as the lambdas of computeCellList that call it: that function is large enough that GCC's
 // inliner otherwise makes other choices, which cost more than the calls' work.
 CFL_ALWAYS_INLINE inline bool cellInEdgeRegion(const std::array<Eigen::Vector3d, 3>& c, const Eigen::Vector3d& outward,
@@ -195,8 +197,10 @@ CFL_ALWAYS_INLINE inline bool cellInEdgeRegion(const std::array<Eigen::Vector3d,
   const Eigen::Vector3d& d = c[(e + 2) % 3];
   auto clears = [&](double value, const Eigen::Vector3d& direction) {
     const double l1 = direction.lpNorm<1>();
-    if (!(value > half * l1)) return false;
-    return value > half * l1 + margin * direction.norm();
+    const double reach = half * l1;
+    if (!(value > reach)) return false;
+    if (value > reach + margin * (2 * l1)) return true;
+    return value > reach + margin * direction.norm();
   };
   if (!clears((center - a).dot(outward), outward)) return false;
   const Eigen::Vector3d to_d_from_a = d - a;

@@ -333,7 +333,14 @@ struct BuildContext {
   // The point-triangle distances of the active query kernels four at a time (the same bits as one at a
   // time), or nullptr.
   detail::PointTriangles4 four;
+  // pointTriangleSquaredDistance of the same kernels (the same bits).
+  detail::PointTriangle1 one;
   double largest_edge;  // the largest mean edge of a triangle
+
+  double squaredDistance(const Eigen::Vector3d& p, const std::array<Eigen::Vector3d, 3>& c,
+                         Eigen::Vector3d* closest = nullptr) const {
+    return one(p, c[0], c[1], c[2], closest);
+  }
 };
 
 // A cell's list, appended to `ids` / `bounds` (bounds in units of size / 32), and its lower bound.
@@ -389,7 +396,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   double center_squared = kInfinity;
   for (int n = 0; n < upper_candidate_count; ++n) {
     const auto& c = geometry.corners[upper_candidates[n]];
-    center_squared = std::min(center_squared, pointTriangleSquaredDistance(center, c[0], c[1], c[2]));
+    center_squared = std::min(center_squared, context.squaredDistance(center, c));
   }
   center_squared = std::nextafter(center_squared * (1 + 1e-12), kInfinity);
   int center_triangle = -1;
@@ -403,7 +410,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     if (center_triangle < 0) {
       center_triangle = upper_candidates[0];
       const auto& c = geometry.corners[center_triangle];
-      center_squared = pointTriangleSquaredDistance(center, c[0], c[1], c[2]);
+      center_squared = context.squaredDistance(center, c);
     }
   }
   if (std::find(upper_candidates, upper_candidates + upper_candidate_count, center_triangle) ==
@@ -418,7 +425,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     const auto& c = geometry.corners[upper_candidates[n]];
     double farthest = 0;
     for (int m = 0; m < 8 && farthest < upper; ++m) {
-      farthest = std::max(farthest, pointTriangleSquaredDistance(corners[m], c[0], c[1], c[2]));
+      farthest = std::max(farthest, context.squaredDistance(corners[m], c));
     }
     upper = std::min(upper, farthest);
   }
@@ -493,7 +500,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   auto exclusionTests = [&](int i, double& d_min, double& d_center) CFL_ALWAYS_INLINE {
     const auto& c = geometry.corners.in_leaf_order[i];
     Eigen::Vector3d closest;
-    const double squared = pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest);
+    const double squared = context.squaredDistance(center, c, &closest);
     return exclusionTestsGiven(i, squared, closest, d_min, d_center);
   };
   // Entries listed whatever comes after: not droppable (no edge region holds the cell, so culling keeps them
@@ -855,7 +862,7 @@ std::pair<double, int> nearestWithHint(const BuildContext& context, const Eigen:
   int best_triangle = -1;
   if (hint >= 0) {
     const auto& c = geometry.corners[hint];
-    best = pointTriangleSquaredDistance(p, c[0], c[1], c[2]);
+    best = context.squaredDistance(p, c);
     best_triangle = hint;
   }
   detail::nearestTriangle(geometry, p, best, best_triangle, nullptr, context.four);
@@ -873,7 +880,7 @@ std::pair<double, int> cachedNearestWithHint(const BuildContext& context, const 
   const MeshModel& geometry = context.geometry;
   auto squaredDistance = [&](int t) {
     const auto& c = geometry.corners[t];
-    return pointTriangleSquaredDistance(p, c[0], c[1], c[2]);
+    return context.squaredDistance(p, c);
   };
   if (hint < 0) return nearestWithHint(context, p, hint);
   const double hint_squared = squaredDistance(hint);
@@ -1098,8 +1105,12 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   const TaskGroupWaiter sign_waiter{arena, sign_task};
   const Topology topology = options.topology_culling ? makeTopology(geometry) : Topology();
   detail::PointTriangles4 four = nullptr;
+  detail::PointTriangle1 one = &pointTriangleSquaredDistance;
 #if CFL_X86_64_V3_KERNELS
-  if (activeQueryKernels() == QueryKernels::kX86_64_V3) four = &detail::x86_64_v3::pointTriangleSquaredDistances4;
+  if (activeQueryKernels() == QueryKernels::kX86_64_V3) {
+    four = &detail::x86_64_v3::pointTriangleSquaredDistances4;
+    one = &detail::x86_64_v3::pointTriangleSquaredDistance;
+  }
 #endif
   std::vector<double> triangle_edge(geometry.corners.size());
   for (std::size_t t = 0; t < triangle_edge.size(); ++t) {
@@ -1108,7 +1119,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   }
   const double largest_edge =
       triangle_edge.empty() ? 0.0 : *std::max_element(triangle_edge.begin(), triangle_edge.end());
-  const BuildContext context{geometry, topology, options.topology_culling, early_split_decisions.load(), four,
+  const BuildContext context{geometry, topology, options.topology_culling, early_split_decisions.load(), four, one,
                              largest_edge};
   const auto& progress = options.progress;
 

@@ -5,6 +5,7 @@
 #include "detail/box_triangle_bound.h"
 #include "detail/builder_test_hooks.h"
 #include "detail/nearest_triangle.h"
+#include "detail/query_kernels.h"
 
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
@@ -184,16 +185,22 @@ Topology makeTopology(const MeshModel& geometry) {
 // of the triangle with corners c, with a margin so that rounding never decides. Each half-space is linear, so
 // its lowest value over the cube is at a corner: the center's value minus the reach, half edge times the
 // 1-norm of its normal plus the margin times its 2-norm. The 2-norm (a square root) is taken only when the
-// center clears the 1-norm part, which adding a nonnegative margin can only raise.
-bool cellInEdgeRegion(const std::array<Eigen::Vector3d, 3>& c, const Eigen::Vector3d& outward, int e,
-                      const Eigen::Vector3d& center, double half, double margin) {
+// center clears the 1-norm part, which adding a nonnegative margin can only raise, and clears it by less than
+// the margin times twice the 1-norm: the 2-norm is at most the 1-norm, and rounding preserves order, so
+// clearing that larger reach answers the same.
+// Always inlined, as the lambdas of computeCellList that call it: that function is large enough that GCC's
+// inliner otherwise makes other choices, which cost more than the calls' work.
+CFL_ALWAYS_INLINE inline bool cellInEdgeRegion(const std::array<Eigen::Vector3d, 3>& c, const Eigen::Vector3d& outward,
+                                               int e, const Eigen::Vector3d& center, double half, double margin) {
   const Eigen::Vector3d& a = c[e];
   const Eigen::Vector3d& b = c[(e + 1) % 3];
   const Eigen::Vector3d& d = c[(e + 2) % 3];
   auto clears = [&](double value, const Eigen::Vector3d& direction) {
     const double l1 = direction.lpNorm<1>();
-    if (!(value > half * l1)) return false;
-    return value > half * l1 + margin * direction.norm();
+    const double reach = half * l1;
+    if (!(value > reach)) return false;
+    if (value > reach + margin * (2 * l1)) return true;
+    return value > reach + margin * direction.norm();
   };
   if (!clears((center - a).dot(outward), outward)) return false;
   const Eigen::Vector3d to_d_from_a = d - a;
@@ -223,15 +230,27 @@ struct ListScratch {
   std::vector<std::int32_t> candidates;  // of the current voxel, from the Bvh walk: leaf positions
   std::vector<double> quick_bounds;      // per list entry: cubeTriangleQuickBound, before the full bound
   std::vector<double> center_distances;  // per list entry: its distance from the cell's center
-  // Per candidate of a cell that cannot split: the exclusion tests' verdict when the gather already ran them
-  // (kNotTested, kExcluded or kKept), and for a kept one its quick bound and distance from the center.
-  std::vector<std::uint8_t> early_state;
-  std::vector<double> early_quick_bounds;
-  std::vector<double> early_center_distances;
-  std::vector<std::uint8_t> early_masks;  // per candidate of such a cell: its edge region mask (culling)
-  // Per entry of the cell's list: its full bound when entry_exact, else its quick bound (finishCellList).
-  std::vector<double> entry_bounds;
-  std::vector<std::uint8_t> entry_exact;
+  // With a four-triangle kernel: the candidates (their indices in `candidates`) whose exclusion tests run
+  // after the first culling round, and per candidate its squared distance from the center and closest point.
+  std::vector<std::uint32_t> tested;
+  std::vector<double> tested_squared;
+  std::vector<Eigen::Vector3d> tested_closest;
+  // Per candidate that the gather already tested (see computeCellList's certainlyListed), by its index in
+  // `candidates`. Written by index into a vector that only grows: pushed one by one, its elements went
+  // through a call each.
+  struct EarlyTest {
+    double quick_bound;      // when kept
+    double center_distance;  // when kept
+    std::uint8_t state;      // kNotTested, kExcluded or kKept (the exclusion tests' verdict)
+    std::uint8_t mask;       // its edge region mask, with culling
+  };
+  std::vector<EarlyTest> early;
+  // Per entry of the cell's list: its full bound when exact, else its quick bound (finishCellList).
+  struct EntryBound {
+    double bound;
+    bool exact;
+  };
+  std::vector<EntryBound> entry_bounds;
   // The lattice points (see Lattice) of the current root cell's splits, by their coordinates' bits: the
   // squared distance and the first nearest triangle the search visits. Neighbouring cells that both split
   // share a face's points and up to four cells an edge's, which without it were each searched again; the
@@ -312,6 +331,17 @@ struct BuildContext {
   const Topology& topology;
   bool culling;
   bool early_split;  // see detail::setEarlySplitDecisions
+  // The point-triangle distances of the active query kernels four at a time (the same bits as one at a
+  // time), or nullptr.
+  detail::PointTriangles4 four;
+  // pointTriangleSquaredDistance of the same kernels (the same bits).
+  detail::PointTriangle1 one;
+  double largest_edge;  // the largest mean edge of a triangle
+
+  double squaredDistance(const Eigen::Vector3d& p, const std::array<Eigen::Vector3d, 3>& c,
+                         Eigen::Vector3d* closest = nullptr) const {
+    return one(p, c[0], c[1], c[2], closest);
+  }
 };
 
 // A cell's list, appended to `ids` / `bounds` (bounds in units of size / 32), and its lower bound.
@@ -367,21 +397,21 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   double center_squared = kInfinity;
   for (int n = 0; n < upper_candidate_count; ++n) {
     const auto& c = geometry.corners[upper_candidates[n]];
-    center_squared = std::min(center_squared, pointTriangleSquaredDistance(center, c[0], c[1], c[2]));
+    center_squared = std::min(center_squared, context.squaredDistance(center, c));
   }
   center_squared = std::nextafter(center_squared * (1 + 1e-12), kInfinity);
   int center_triangle = -1;
-  detail::nearestTriangle(geometry, center, center_squared, center_triangle);
+  detail::nearestTriangle(geometry, center, center_squared, center_triangle, nullptr, context.four);
   if (center_triangle < 0) {
     // Nothing was found below the corners' bound: their distances were not finite (coordinates near
     // the limits of double). Any triangle serves as U's candidate and the cone's reference, as long as
     // center_squared is its own distance.
     center_squared = kInfinity;
-    detail::nearestTriangle(geometry, center, center_squared, center_triangle);
+    detail::nearestTriangle(geometry, center, center_squared, center_triangle, nullptr, context.four);
     if (center_triangle < 0) {
       center_triangle = upper_candidates[0];
       const auto& c = geometry.corners[center_triangle];
-      center_squared = pointTriangleSquaredDistance(center, c[0], c[1], c[2]);
+      center_squared = context.squaredDistance(center, c);
     }
   }
   if (std::find(upper_candidates, upper_candidates + upper_candidate_count, center_triangle) ==
@@ -396,7 +426,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     const auto& c = geometry.corners[upper_candidates[n]];
     double farthest = 0;
     for (int m = 0; m < 8 && farthest < upper; ++m) {
-      farthest = std::max(farthest, pointTriangleSquaredDistance(corners[m], c[0], c[1], c[2]));
+      farthest = std::max(farthest, context.squaredDistance(corners[m], c));
     }
     upper = std::min(upper, farthest);
   }
@@ -451,10 +481,11 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   // Candidates are leaf positions (see Topology). The exclusion tests of candidate i: whether they exclude
   // it, else its quick bound and center distance.
   const auto& leaf_triangle = geometry.bvh.triangle_ids;
-  auto exclusionTests = [&](int i, double& d_min, double& d_center) {
+  // From candidate i's squared distance to the center and its closest point there.
+  auto exclusionTestsGiven = [&](int i, double squared, const Eigen::Vector3d& closest, double& d_min,
+                                 double& d_center) CFL_ALWAYS_INLINE {
     const auto& c = geometry.corners.in_leaf_order[i];
-    Eigen::Vector3d closest;
-    d_center = std::sqrt(pointTriangleSquaredDistance(center, c[0], c[1], c[2], &closest));
+    d_center = std::sqrt(squared);
     bool excluded = d_center - half_diagonal > upper_bound;
     d_min = 0;
     if (!excluded) {
@@ -467,6 +498,12 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     }
     return excluded;
   };
+  auto exclusionTests = [&](int i, double& d_min, double& d_center) CFL_ALWAYS_INLINE {
+    const auto& c = geometry.corners.in_leaf_order[i];
+    Eigen::Vector3d closest;
+    const double squared = context.squaredDistance(center, c, &closest);
+    return exclusionTestsGiven(i, squared, closest, d_min, d_center);
+  };
   // Entries listed whatever comes after: not droppable (no edge region holds the cell, so culling keeps them
   // whatever the other candidates do), and close enough to the center that the full bound cannot exclude
   // them (see the full bounds below). A cell that cannot split counts them as the walk finds them, and stops
@@ -475,12 +512,9 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   const bool count_early = longest_stored != RegionTree::kNoList;
   std::uint32_t certain_count = 0;
   enum : std::uint8_t { kNotTested, kExcluded, kKept };
-  scratch.early_state.clear();
-  scratch.early_quick_bounds.clear();
-  scratch.early_center_distances.clear();
   // The edges of candidate i with a neighbour whose region holds the cell: topology culling may drop it
   // when this is not 0.
-  auto edgeRegionMask = [&](int i) {
+  auto edgeRegionMask = [&](int i) CFL_ALWAYS_INLINE {
     const TriangleTopology& entry = topology.triangles[i];
     std::uint8_t mask = 0;
     for (int e = 0; e < 3; ++e) {
@@ -491,28 +525,47 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     }
     return mask;
   };
-  // The masks computed while counting, kept for culling below.
-  scratch.early_masks.clear();
-  auto certainlyListed = [&](int i) {
-    if (context.culling) {
-      const std::uint8_t mask = edgeRegionMask(i);
-      scratch.early_masks.push_back(mask);
-      if (mask) {
-        scratch.early_state.push_back(kNotTested);
-        scratch.early_quick_bounds.push_back(0);
-        scratch.early_center_distances.push_back(0);
-        return false;
-      }
+  // The masks computed while counting are kept for culling below.
+  std::vector<std::int32_t>& candidates = scratch.candidates;
+  // Tests candidates[n]; scratch.early must hold n.
+  auto certainlyListed = [&](std::uint32_t n) CFL_ALWAYS_INLINE {
+    const int i = candidates[n];
+    const std::uint8_t mask = context.culling ? edgeRegionMask(i) : 0;
+    if (mask) {
+      scratch.early[n] = {0, 0, kNotTested, mask};
+      return false;
     }
     double d_min, d_center;
     const bool excluded = exclusionTests(i, d_min, d_center);
-    scratch.early_state.push_back(excluded ? kExcluded : kKept);
-    scratch.early_quick_bounds.push_back(d_min);
-    scratch.early_center_distances.push_back(d_center);
+    scratch.early[n] = {d_min, d_center, excluded ? kExcluded : kKept, mask};
     return !excluded && d_center < certain;
   };
 
-  std::vector<std::int32_t>& candidates = scratch.candidates;
+  // Whether the cell splits whatever the rest of its list (see the rule after the walk), and the state of that
+  // rule: the certain entries so far and their shortfalls.
+  const bool split_early = split_edges && context.early_split && !count_early &&
+                           size > kFarCellRatio * center_distance * (1 + 1e-6);
+  const double largest_mean = size / (kSmallestCell * (1 + 1e-6));
+  double shortfall = 0;
+  std::uint32_t certain_entries = 0;
+  // When no triangle of the mesh has a mean edge above largest_mean, every excess is 0 whatever the
+  // candidates, and the rule holds as soon as it holds for the candidates found so far (both sums only
+  // grow): the walk tests the candidates as it finds them and stops there.
+  const bool split_while_walking = split_early && context.largest_edge <= largest_mean;
+  // Tests candidates[n] for the rule; returns whether the rule now holds, excess being the candidates' excess.
+  auto splitsCertainly = [&](std::uint32_t n, double excess) CFL_ALWAYS_INLINE {
+    if (!certainlyListed(n)) return false;
+    const int i = candidates[n];
+    ++certain_entries;
+    shortfall += std::max(0.0, largest_mean - (*split_edges)[leaf_triangle[i]]);
+    return certain_entries > kListTarget && shortfall > excess * (1 + 1e-6);
+  };
+  auto certainSplit = [&] {
+    out.lower_bound = std::max(0.0, center_lower);
+    early_split_decision_count.fetch_add(1, std::memory_order_relaxed);
+    return kCertainSplit;
+  };
+
   candidates.clear();
   const auto& nodes = geometry.bvh.nodes;
   int stack[128];  // see detail::nearestTriangle for why this is enough
@@ -526,50 +579,48 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     if (cone_usable && coneExcludes(outside.norm(), node.center, node.radius)) continue;
     if (node.isLeaf()) {
       for (int i = node.first; i < node.first + node.count; ++i) candidates.push_back(i);
+      if ((count_early || split_while_walking) && scratch.early.size() < candidates.size()) {
+        scratch.early.resize(2 * candidates.size());
+      }
       if (count_early) {
         for (std::size_t n = candidates.size() - node.count; n < candidates.size(); ++n) {
-          if (certainlyListed(candidates[n]) && ++certain_count > longest_stored) {
+          if (certainlyListed(std::uint32_t(n)) && ++certain_count > longest_stored) {
             out.lower_bound = std::max(0.0, center_lower);
             return RegionTree::kNoList;
           }
         }
+      } else if (split_while_walking) {
+        for (std::size_t n = candidates.size() - node.count; n < candidates.size(); ++n) {
+          if (splitsCertainly(std::uint32_t(n), 0.0)) return certainSplit();
+        }
       }
     } else {
       // Counting, the nearer child first: triangles nearer the center are the likelier to be certain, so the
-      // count passes the longest storable list sooner. Either order lists the same triangles.
-      const bool swap = count_early && (nodes[node.first].center - center).squaredNorm() <
-                                           (nodes[node.first + 1].center - center).squaredNorm();
+      // count passes its threshold sooner. Either order lists the same triangles.
+      const bool swap = (count_early || split_while_walking) &&
+                        (nodes[node.first].center - center).squaredNorm() <
+                            (nodes[node.first + 1].center - center).squaredNorm();
       stack[top++] = node.first + swap;
       stack[top++] = node.first + !swap;
     }
   }
   const std::uint32_t candidate_count = static_cast<std::uint32_t>(candidates.size());
   // Candidates whose culling mask and exclusion tests certainlyListed has computed, in order.
-  std::uint32_t early_tested = count_early ? candidate_count : 0;
+  std::uint32_t early_tested = count_early || split_while_walking ? candidate_count : 0;
   // Whether the cell splits whatever the rest of its list. The listed lower bound is at most the center's
   // distance (the list holds a nearest triangle of the center). With T the largest mean edge that lets the
   // cell split, any list L holding the certain entries C has mean edge below T when the sum over L of (edge - T)
   // is negative; its largest value over such L, the sum over C plus the positive excesses of the other
   // candidates, is the excess of all candidates less the shortfalls of C. The margins, far above the rounding
   // of the bounds and of the sums, only make the rule more careful than shouldSplit.
-  if (split_edges && context.early_split && !count_early && size > kFarCellRatio * center_distance * (1 + 1e-6)) {
-    const double largest_mean = size / (kSmallestCell * (1 + 1e-6));
+  if (split_early && !split_while_walking) {
+    if (scratch.early.size() < candidate_count) scratch.early.resize(candidate_count);
     double excess = 0;
     for (std::uint32_t n = 0; n < candidate_count; ++n) {
       excess += std::max(0.0, (*split_edges)[leaf_triangle[candidates[n]]] - largest_mean);
     }
-    double shortfall = 0;
-    std::uint32_t certain_entries = 0;
     while (early_tested < candidate_count) {
-      const int i = candidates[early_tested++];
-      if (!certainlyListed(i)) continue;
-      ++certain_entries;
-      shortfall += std::max(0.0, largest_mean - (*split_edges)[leaf_triangle[i]]);
-      if (certain_entries > kListTarget && shortfall > excess * (1 + 1e-6)) {
-        out.lower_bound = std::max(0.0, center_lower);
-        early_split_decision_count.fetch_add(1, std::memory_order_relaxed);
-        return kCertainSplit;
-      }
+      if (splitsCertainly(early_tested++, excess)) return certainSplit();
     }
   }
 
@@ -640,7 +691,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     left = missing + 3;                     // shown to leave
     for (std::uint32_t n = 0; n < candidate_count; ++n) {
       const int i = candidates[n];
-      const std::uint8_t mask = n < early_tested ? scratch.early_masks[n] : edgeRegionMask(i);
+      const std::uint8_t mask = n < early_tested ? scratch.early[n].mask : edgeRegionMask(i);
       scratch.marks[i] = mask ? undecided : stays;
       scratch.triangle_masks[i] = mask;
       any_droppable = any_droppable || mask;
@@ -656,15 +707,46 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   scratch.quick_bounds.clear();
   scratch.center_distances.clear();
   bool any_excluded = false;
+  auto needsTests = [&](std::uint32_t n) {
+    return !(culling && scratch.marks[candidates[n]] == left) &&
+           !(n < early_tested && scratch.early[n].state != kNotTested);
+  };
+  // With a four-triangle kernel, the distances from the center of every candidate still to be tested, four at
+  // a time: the same bits as one at a time.
+  if (context.four != nullptr) {
+    scratch.tested.clear();
+    for (std::uint32_t n = 0; n < candidate_count; ++n) {
+      if (needsTests(n)) scratch.tested.push_back(n);
+    }
+    const std::size_t tested_count = scratch.tested.size();
+    scratch.tested_squared.resize(candidate_count);
+    scratch.tested_closest.resize(candidate_count);
+    for (std::size_t k = 0; k < tested_count; k += 4) {
+      const int lanes = int(std::min<std::size_t>(4, tested_count - k));
+      const std::array<Eigen::Vector3d, 3>* triangles[4];
+      for (int j = 0; j < 4; ++j) {
+        triangles[j] = &geometry.corners.in_leaf_order[candidates[scratch.tested[k + (j < lanes ? j : 0)]]];
+      }
+      double squared[4];
+      Eigen::Vector3d closest[4];
+      context.four(center, triangles, squared, closest);
+      for (int j = 0; j < lanes; ++j) {
+        scratch.tested_squared[scratch.tested[k + j]] = squared[j];
+        scratch.tested_closest[scratch.tested[k + j]] = closest[j];
+      }
+    }
+  }
   for (std::uint32_t n = 0; n < candidate_count; ++n) {
     const int i = candidates[n];
     if (culling && scratch.marks[i] == left) continue;
     double d_min, d_center;
     bool excluded;
-    if (n < early_tested && scratch.early_state[n] != kNotTested) {
-      excluded = scratch.early_state[n] == kExcluded;
-      d_min = scratch.early_quick_bounds[n];
-      d_center = scratch.early_center_distances[n];
+    if (n < early_tested && scratch.early[n].state != kNotTested) {
+      excluded = scratch.early[n].state == kExcluded;
+      d_min = scratch.early[n].quick_bound;
+      d_center = scratch.early[n].center_distance;
+    } else if (context.four != nullptr) {
+      excluded = exclusionTestsGiven(i, scratch.tested_squared[n], scratch.tested_closest[n], d_min, d_center);
     } else {
       excluded = exclusionTests(i, d_min, d_center);
     }
@@ -686,7 +768,6 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   // its lower bound.
   const std::size_t list_begin = out.ids.size();
   scratch.entry_bounds.clear();
-  scratch.entry_exact.clear();
   for (std::uint32_t n = 0; n < count; ++n) {
     const int i = candidates[n];
     if (culling && scratch.marks[i] == left) continue;
@@ -698,8 +779,7 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
       if (d_min > upper_bound) continue;
     }
     out.ids.push_back(leaf_triangle[i]);
-    scratch.entry_bounds.push_back(d_min);
-    scratch.entry_exact.push_back(exact);
+    scratch.entry_bounds.push_back({d_min, exact});
   }
   count = static_cast<std::uint32_t>(out.ids.size() - list_begin);
   // The lower bound of the voxel: the closest triangle to any of its points is listed, so the smallest
@@ -707,22 +787,22 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   // bound, so only the entries whose quick bound is below the smallest full bound so far need theirs.
   double lower = kInfinity;
   for (std::uint32_t n = 0; n < count; ++n) {
-    if (scratch.entry_exact[n]) lower = std::min(lower, scratch.entry_bounds[n]);
+    if (scratch.entry_bounds[n].exact) lower = std::min(lower, scratch.entry_bounds[n].bound);
   }
   for (;;) {
     std::uint32_t next = count;
     for (std::uint32_t n = 0; n < count; ++n) {
-      if (!scratch.entry_exact[n] && scratch.entry_bounds[n] < lower &&
-          (next == count || scratch.entry_bounds[n] < scratch.entry_bounds[next])) {
+      if (!scratch.entry_bounds[n].exact && scratch.entry_bounds[n].bound < lower &&
+          (next == count || scratch.entry_bounds[n].bound < scratch.entry_bounds[next].bound)) {
         next = n;
       }
     }
     if (next == count) break;
     const auto& c = geometry.corners[out.ids[list_begin + next]];
-    scratch.entry_bounds[next] =
-        detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], scratch.entry_bounds[next]);
-    scratch.entry_exact[next] = true;
-    lower = std::min(lower, scratch.entry_bounds[next]);
+    ListScratch::EntryBound& entry = scratch.entry_bounds[next];
+    entry.bound = detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], entry.bound);
+    entry.exact = true;
+    lower = std::min(lower, entry.bound);
   }
   // Rounded down, past the rounding of the bounds' sums too, which scales with the coordinates rather than
   // with the distance: a cell touching the mesh must not get a positive bound from rounding alone.
@@ -742,8 +822,8 @@ void finishCellList(const BuildContext& context, ListScratch& scratch, const Eig
   std::int32_t* list = out.ids.data() + list_begin;
   scratch.sort_keys.clear();
   for (std::uint32_t n = 0; n < count; ++n) {
-    double d_min = scratch.entry_bounds[n];
-    if (!scratch.entry_exact[n]) {
+    double d_min = scratch.entry_bounds[n].bound;
+    if (!scratch.entry_bounds[n].exact) {
       const auto& c = context.geometry.corners[list[n]];
       d_min = detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], d_min);
     }
@@ -777,31 +857,33 @@ struct Subtree {
 };
 
 // Distance from p to the mesh with its nearest triangle, starting from a triangle near p.
-std::pair<double, int> nearestWithHint(const MeshModel& geometry, const Eigen::Vector3d& p, int hint) {
+std::pair<double, int> nearestWithHint(const BuildContext& context, const Eigen::Vector3d& p, int hint) {
+  const MeshModel& geometry = context.geometry;
   double best = kInfinity;
   int best_triangle = -1;
   if (hint >= 0) {
     const auto& c = geometry.corners[hint];
-    best = pointTriangleSquaredDistance(p, c[0], c[1], c[2]);
+    best = context.squaredDistance(p, c);
     best_triangle = hint;
   }
-  detail::nearestTriangle(geometry, p, best, best_triangle);
+  detail::nearestTriangle(geometry, p, best, best_triangle, nullptr, context.four);
   return {std::sqrt(best), best_triangle};
 }
 
-// As nearestWithHint(geometry, p, hint), ties included, through `cache`: that answer is `hint` unless a
+// As nearestWithHint(context, p, hint), ties included, through `cache`: that answer is `hint` unless a
 // triangle is strictly nearer, else the first nearest triangle the search visits, the same whatever the
 // search's initial bound (the bound prunes nodes, it never reorders them, and one just above a guess's
 // distance prunes no node holding a nearest triangle). So the cache keeps the search's first nearest and
 // each cell compares it with its own hint. `guesses` (triangles near p, such as the cell's corners') give
 // the bound when p is new.
-std::pair<double, int> cachedNearestWithHint(const MeshModel& geometry, const Eigen::Vector3d& p, int hint,
+std::pair<double, int> cachedNearestWithHint(const BuildContext& context, const Eigen::Vector3d& p, int hint,
                                              const int* guesses, int guess_count, ListScratch& cache) {
+  const MeshModel& geometry = context.geometry;
   auto squaredDistance = [&](int t) {
     const auto& c = geometry.corners[t];
-    return pointTriangleSquaredDistance(p, c[0], c[1], c[2]);
+    return context.squaredDistance(p, c);
   };
-  if (hint < 0) return nearestWithHint(geometry, p, hint);
+  if (hint < 0) return nearestWithHint(context, p, hint);
   const double hint_squared = squaredDistance(hint);
   std::array<std::uint64_t, 3> key;
   std::memcpy(key.data(), p.data(), sizeof key);
@@ -811,9 +893,9 @@ std::pair<double, int> cachedNearestWithHint(const MeshModel& geometry, const Ei
     for (int n = 0; n < guess_count; ++n) bound = std::min(bound, squaredDistance(guesses[n]));
     double best = std::nextafter(bound * (1 + 1e-12), kInfinity);
     int best_triangle = -1;
-    detail::nearestTriangle(geometry, p, best, best_triangle);
+    detail::nearestTriangle(geometry, p, best, best_triangle, nullptr, context.four);
     // Nothing below the bound: distances that are not finite (coordinates near the limits of double).
-    if (best_triangle < 0) return nearestWithHint(geometry, p, hint);
+    if (best_triangle < 0) return nearestWithHint(context, p, hint);
     found = cache.lattice_nearest.emplace(key, std::make_pair(best, best_triangle)).first;
   }
   const auto [nearest_squared, nearest_triangle] = found->second;
@@ -944,7 +1026,7 @@ class SubtreeBuilder {
           }
           const int hint = corner_triangle[(a / 2) | (b / 2) << 1 | (c / 2) << 2];
           const auto [distance, triangle] =
-              cachedNearestWithHint(context_.geometry, min_corner + half * Eigen::Vector3d(a, b, c), hint,
+              cachedNearestWithHint(context_, min_corner + half * Eigen::Vector3d(a, b, c), hint,
                                     guesses, guess_count, scratch);
           lattice.distance[n] = std::nextafter(distance, 0.0);
           lattice.triangle[n] = triangle;
@@ -1023,12 +1105,23 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   arena.execute([&] { sign_task.run([&] { model.sign = analyzeMeshSign(geometry); }); });
   const TaskGroupWaiter sign_waiter{arena, sign_task};
   const Topology topology = options.topology_culling ? makeTopology(geometry) : Topology();
-  const BuildContext context{geometry, topology, options.topology_culling, early_split_decisions.load()};
+  detail::PointTriangles4 four = nullptr;
+  detail::PointTriangle1 one = &pointTriangleSquaredDistance;
+#if CFL_X86_64_V3_KERNELS
+  if (activeQueryKernels() == QueryKernels::kX86_64_V3) {
+    four = &detail::x86_64_v3::pointTriangleSquaredDistances4;
+    one = &detail::x86_64_v3::pointTriangleSquaredDistance;
+  }
+#endif
   std::vector<double> triangle_edge(geometry.corners.size());
   for (std::size_t t = 0; t < triangle_edge.size(); ++t) {
     const auto& c = geometry.corners[t];
     triangle_edge[t] = ((c[1] - c[0]).norm() + (c[2] - c[1]).norm() + (c[0] - c[2]).norm()) / 3;
   }
+  const double largest_edge =
+      triangle_edge.empty() ? 0.0 : *std::max_element(triangle_edge.begin(), triangle_edge.end());
+  const BuildContext context{geometry, topology, options.topology_culling, early_split_decisions.load(), four, one,
+                             largest_edge};
   const auto& progress = options.progress;
 
   // 1. The distance field at the root grid's corners, with the nearest triangle of each. Rows are walked in
@@ -1051,7 +1144,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       int hint = -1;
       for (int i = 0; i < corner_dims[0]; ++i) {
         const auto [distance, triangle] =
-            nearestWithHint(geometry, tree.origin + tree.root_size * Eigen::Vector3d(i, j, k), hint);
+            nearestWithHint(context, tree.origin + tree.root_size * Eigen::Vector3d(i, j, k), hint);
         root_corner_distance[cornerIndex(i, j, k)] = std::nextafter(distance, 0.0);
         root_corner_triangle[cornerIndex(i, j, k)] = triangle;
         hint = triangle;

@@ -4,6 +4,7 @@
 // pays, consistent statistics, thread-independent results and a well-behaved progress callback.
 
 #include "cfl/cfl_model.h"
+#include "cfl/query_kernels.h"
 #include "../src/detail/builder_test_hooks.h"
 #include "support/test_meshes.h"
 
@@ -632,24 +633,53 @@ TEST(CflBuilder, AverageListLengthDecreasesWithResolutionOnTheBunny) {
   }
 }
 
+// Every cell, list, entry bound, lower bound and corner distance of a and b agree.
+void expectSameRegions(const RegionTree& a, const RegionTree& b, const std::string& label) {
+  EXPECT_EQ(a.origin, b.origin) << label;
+  EXPECT_EQ(a.root_size, b.root_size) << label;
+  EXPECT_EQ(a.max_depth, b.max_depth) << label;
+  EXPECT_EQ(a.corner_distance_unit, b.corner_distance_unit) << label;
+  EXPECT_EQ(a.nodes, b.nodes) << label;
+  EXPECT_EQ(a.leaf_list, b.leaf_list) << label;
+  EXPECT_EQ(a.leaf_lower_bound, b.leaf_lower_bound) << label;
+  EXPECT_EQ(a.leaf_corner_distance, b.leaf_corner_distance) << label;
+  EXPECT_EQ(a.list_entry_ids, b.list_entry_ids) << label;
+  EXPECT_EQ(a.list_high_ids, b.list_high_ids) << label;
+  EXPECT_EQ(a.list_entry_bounds, b.list_entry_bounds) << label;
+  EXPECT_EQ(a.list_offsets, b.list_offsets) << label;
+}
+
 TEST(CflBuilder, ResultDoesNotDependOnThreadCount) {
   for (const NamedMesh& named : {testMeshes()[1], testMeshes()[5], testMeshes()[6]}) {
     for (int resolution : {0, 12}) {
       BuildOptions one = options(resolution), two = options(resolution);
       one.threads = 1;
       two.threads = 2;
-      const RegionTree a = buildCflModel(named.mesh, one).regions;
-      const RegionTree b = buildCflModel(named.mesh, two).regions;
-      EXPECT_EQ(a.nodes, b.nodes) << named.name;
-      EXPECT_EQ(a.leaf_list, b.leaf_list) << named.name;
-      EXPECT_EQ(a.leaf_lower_bound, b.leaf_lower_bound) << named.name;
-      EXPECT_EQ(a.leaf_corner_distance, b.leaf_corner_distance) << named.name;
-      EXPECT_EQ(a.list_entry_ids, b.list_entry_ids) << named.name;
-      EXPECT_EQ(a.list_high_ids, b.list_high_ids) << named.name;
-      EXPECT_EQ(a.list_entry_bounds, b.list_entry_bounds) << named.name;
-      EXPECT_EQ(a.list_offsets, b.list_offsets) << named.name;
+      expectSameRegions(buildCflModel(named.mesh, one).regions, buildCflModel(named.mesh, two).regions, named.name);
     }
   }
+}
+
+// The builder runs its point-triangle distances through the active query kernels, four triangles at a time
+// in the x86-64-v3 build; the nearest triangles, ties included, and so the model must be the generic
+// build's bit for bit.
+TEST(CflBuilder, ResultDoesNotDependOnTheQueryKernels) {
+  if (!queryKernelsAvailable(QueryKernels::kX86_64_V3)) GTEST_SKIP() << "no x86-64-v3 kernels on this build or CPU";
+  const QueryKernels active = activeQueryKernels();
+  std::vector<NamedMesh> meshes = testMeshes();
+  meshes.push_back({"bunny", test::loadBunny()});
+  meshes.push_back({"thin plate", test::makeThinPlate(1.0, 0.05, 12)});
+  for (const NamedMesh& named : meshes) {
+    for (bool culling : {false, true}) {
+      const std::string label = named.name + (culling ? " with topology culling" : "");
+      setQueryKernels(QueryKernels::kGeneric);
+      const CflModel generic = buildCflModel(named.mesh, options(0, culling));
+      setQueryKernels(QueryKernels::kX86_64_V3);
+      const CflModel v3 = buildCflModel(named.mesh, options(0, culling));
+      expectSameRegions(generic.regions, v3.regions, label);
+    }
+  }
+  setQueryKernels(active);
 }
 
 // A memory limit stops refinement: the lists get longer, never wrong.

@@ -20,46 +20,6 @@ inline double pointBoxSquaredDistance(const Eigen::Vector3d& p, const Aabb& box)
   return (below + above).squaredNorm();
 }
 
-/// The triangle of `model` nearest to p (frame M). `best_squared` is an upper bound on entry (infinity, or
-/// the squared distance of `best_triangle`, a warm start) and the answer's squared distance on exit.
-/// Triangles farther than the entry bound are never reported. Allocation-free; visits nodes nearest-first.
-inline void nearestTriangle(const MeshModel& model, const Eigen::Vector3d& p, double& best_squared, int& best_triangle,
-                            Eigen::Vector3d* closest = nullptr) {
-  const auto& nodes = model.bvh.nodes;
-  if (nodes.empty()) return;
-  // Median-split trees are at most ~log2(n) + 1 deep and depth-first search keeps at most one pending
-  // sibling per level, so 128 entries cannot overflow.
-  int stack[128];
-  int top = 0;
-  if (pointBoxSquaredDistance(p, nodes[0].box()) > best_squared) return;
-  stack[top++] = 0;
-  while (top > 0) {
-    const BvhNode& node = nodes[stack[--top]];
-    if (node.isLeaf()) {
-      for (int i = node.first; i < node.first + node.count; ++i) {
-        const int t = model.bvh.triangle_ids[i];
-        const auto& c = model.corners[t];
-        Eigen::Vector3d q;
-        const double d = pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q);
-        if (d < best_squared) {
-          best_squared = d;
-          best_triangle = t;
-          if (closest) *closest = q;
-        }
-      }
-      continue;
-    }
-    const double d_left = pointBoxSquaredDistance(p, nodes[node.first].box());
-    const double d_right = pointBoxSquaredDistance(p, nodes[node.first + 1].box());
-    // Push the farther child first so the nearer one is searched first and tightens the bound.
-    const bool left_first = d_left <= d_right;
-    const double d_far = left_first ? d_right : d_left;
-    const double d_near = left_first ? d_left : d_right;
-    if (d_far <= best_squared) stack[top++] = left_first ? node.first + 1 : node.first;
-    if (d_near <= best_squared) stack[top++] = left_first ? node.first : node.first + 1;
-  }
-}
-
 /// As nearestTriangle, same contract, on MeshModel::compact_nodes (which must match the Bvh) and the
 /// corners in leaf order: an eighth of the node memory, one indirection less per triangle. Depth-first,
 /// nearer child first; a node popped after the best fell below its bound is skipped. Ties go to the triangle
@@ -226,6 +186,57 @@ struct PendingTriangleTests {
     return improved;
   }
 };
+
+/// The triangle of `model` nearest to p (frame M). `best_squared` is an upper bound on entry (infinity, or
+/// the squared distance of `best_triangle`, a warm start) and the answer's squared distance on exit.
+/// Triangles farther than the entry bound are never reported. Allocation-free; visits nodes nearest-first.
+/// `four`: a kernel testing four triangles at once (PointTriangles4), which tests each leaf's triangles
+/// in batches and accepts them in order: the same answer, ties included; nullptr tests them one at a time.
+inline void nearestTriangle(const MeshModel& model, const Eigen::Vector3d& p, double& best_squared, int& best_triangle,
+                            Eigen::Vector3d* closest = nullptr, PointTriangles4 four = nullptr) {
+  const auto& nodes = model.bvh.nodes;
+  if (nodes.empty()) return;
+  // Median-split trees are at most ~log2(n) + 1 deep and depth-first search keeps at most one pending
+  // sibling per level, so 128 entries cannot overflow.
+  int stack[128];
+  int top = 0;
+  if (pointBoxSquaredDistance(p, nodes[0].box()) > best_squared) return;
+  stack[top++] = 0;
+  while (top > 0) {
+    const BvhNode& node = nodes[stack[--top]];
+    if (node.isLeaf()) {
+      if (four != nullptr) {
+        PendingTriangleTests tests;
+        tests.four = four;
+        for (int i = node.first; i < node.first + node.count; ++i) {
+          tests.add(p, model.corners.in_leaf_order[i], model.bvh.triangle_ids[i], best_squared, best_triangle, closest);
+        }
+        tests.run(p, best_squared, best_triangle, closest);
+        continue;
+      }
+      for (int i = node.first; i < node.first + node.count; ++i) {
+        const int t = model.bvh.triangle_ids[i];
+        const auto& c = model.corners[t];
+        Eigen::Vector3d q;
+        const double d = pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q);
+        if (d < best_squared) {
+          best_squared = d;
+          best_triangle = t;
+          if (closest) *closest = q;
+        }
+      }
+      continue;
+    }
+    const double d_left = pointBoxSquaredDistance(p, nodes[node.first].box());
+    const double d_right = pointBoxSquaredDistance(p, nodes[node.first + 1].box());
+    // Push the farther child first so the nearer one is searched first and tightens the bound.
+    const bool left_first = d_left <= d_right;
+    const double d_far = left_first ? d_right : d_left;
+    const double d_near = left_first ? d_left : d_right;
+    if (d_far <= best_squared) stack[top++] = left_first ? node.first + 1 : node.first;
+    if (d_near <= best_squared) stack[top++] = left_first ? node.first : node.first + 1;
+  }
+}
 
 /// A closest feature list as the point query scans it (see RegionTree): entry n is triangle base + low[n],
 /// or low[n] | high[n] << 16 when high is set (a wide list); bounds[n] * unit (unit shrunk for rounding)

@@ -161,7 +161,8 @@ Topology makeTopology(const MeshModel& geometry) {
     const auto& c = geometry.corners.in_leaf_order[n];
     TriangleTopology& entry = topology.triangles[n];
     const Eigen::Vector3d normal = (c[1] - c[0]).cross(c[2] - c[0]);
-    const double scale = std::max({(c[1] - c[0]).squaredNorm(), (c[2] - c[1]).squaredNorm(), (c[0] - c[2]).squaredNorm()});
+    const double scale =
+        std::max({(c[1] - c[0]).squaredNorm(), (c[2] - c[1]).squaredNorm(), (c[0] - c[2]).squaredNorm()});
     const bool degenerate = !(normal.norm() > 1e-8 * scale);
     for (int e = 0; e < 3; ++e) {
       const int u = triangles[t][e], v = triangles[t][(e + 1) % 3];
@@ -218,9 +219,9 @@ std::uint8_t quantizeEntryBound(double d_min, double unit) {
 // Per-worker scratch of the list pass, reused from cell to cell.
 struct ListScratch {
   // Topology culling: marks[i] in [last_mark - 3, last_mark] when the triangle at leaf position i (see
-  // Topology) is a candidate of the current voxel, saying whether a test excluded it, it stays, may leave or has left; any other value means not a
-  // candidate. Sized on first use, so that idle workers cost nothing; with triangle_masks, 5 bytes per
-  // triangle per worker.
+  // Topology) is a candidate of the current voxel, saying whether a test excluded it, it stays, may leave or has left;
+  // any other value means not a candidate. Sized on first use, so that idle workers cost nothing; with triangle_masks,
+  // 5 bytes per triangle per worker.
   std::vector<std::uint32_t> marks;
   std::uint32_t last_mark = 0;
   // Per leaf position: the edges whose region holds the voxel, read only for undecided candidates.
@@ -291,7 +292,8 @@ RegionTree makeRootGrid(const Aabb& mesh_bounds, int cells, double padding) {
     // alone would add.
     tree.root_dims[axis] = std::max(1, static_cast<int>(std::ceil(extent[axis] / tree.root_size - 1e-9)));
   }
-  const Eigen::Vector3d covered = tree.root_size * Eigen::Vector3d(tree.root_dims[0], tree.root_dims[1], tree.root_dims[2]);
+  const Eigen::Vector3d covered =
+      tree.root_size * Eigen::Vector3d(tree.root_dims[0], tree.root_dims[1], tree.root_dims[2]);
   tree.origin = mesh_bounds.center() - 0.5 * covered;
   return tree;
 }
@@ -420,7 +422,8 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   }
   // The center's triangle first: it usually gives the smallest U, after which the others mostly stop at
   // their first corners that reach it. U is a minimum, so the order does not change it.
-  std::swap(*std::find(upper_candidates, upper_candidates + upper_candidate_count, center_triangle), upper_candidates[0]);
+  std::swap(*std::find(upper_candidates, upper_candidates + upper_candidate_count, center_triangle),
+            upper_candidates[0]);
   double upper = kInfinity;  // squared
   for (int n = 0; n < upper_candidate_count; ++n) {
     const auto& c = geometry.corners[upper_candidates[n]];
@@ -965,7 +968,8 @@ class SubtreeBuilder {
     const std::uint32_t leaf = static_cast<std::uint32_t>(out.list_length.size());
     out.nodes[slot] = RegionTree::kLeafBit | leaf;
     const bool near = out.lists.lower_bound <= kNearCells * size;
-    const bool stored = length != RegionTree::kNoList && (!adaptive_ || length <= (near ? kLongestNearList : kLongestFarList));
+    const bool stored =
+        length != RegionTree::kNoList && (!adaptive_ || length <= (near ? kLongestNearList : kLongestFarList));
     if (stored) {
       finishCellList(context_, scratch, min_corner, size, length, out.lists);
     } else {
@@ -1091,7 +1095,8 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   const std::int64_t floor_bytes = root_count * std::int64_t(sizeof(std::uint32_t) * 3 + sizeof(float) * 9);
   if (root_count > std::numeric_limits<std::uint32_t>::max() / 4 || floor_bytes > memory_limit) {
     std::ostringstream message;
-    message << (adaptive ? std::string("the adaptive regions' root grid") : "resolution " + std::to_string(options.resolution))
+    message << (adaptive ? std::string("the adaptive regions' root grid")
+                         : "resolution " + std::to_string(options.resolution))
             << " needs " << tree.root_dims[0] << " x " << tree.root_dims[1] << " x " << tree.root_dims[2] << " = "
             << root_count << " cells and at least " << floor_bytes << " bytes, more than the memory limit of "
             << memory_limit << " bytes; " << (adaptive ? "raise memory_limit" : "use a smaller resolution");
@@ -1130,7 +1135,9 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   const std::int64_t corner_count = std::int64_t(corner_dims[0]) * corner_dims[1] * corner_dims[2];
   std::vector<double> root_corner_distance(corner_count);
   std::vector<int> root_corner_triangle(corner_count, -1);
-  auto cornerIndex = [&](int i, int j, int k) { return i + std::int64_t(corner_dims[0]) * (j + std::int64_t(corner_dims[1]) * k); };
+  auto cornerIndex = [&](int i, int j, int k) {
+    return i + std::int64_t(corner_dims[0]) * (j + std::int64_t(corner_dims[1]) * k);
+  };
   std::atomic<std::int64_t> done{0};
   auto report = [&](double begin, double end, std::int64_t total) {
     progress(begin + (end - begin) * double(done.load()) / double(std::max<std::int64_t>(total, 1)));
@@ -1243,7 +1250,8 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       tree.leaf_lower_bound.push_back(subtree.lower_bound[leaf]);
       const double corner_unit = tree.cornerDistanceUnit(tree.cellSize(depth));
       std::array<std::uint16_t, 8> corners;
-      for (int c = 0; c < 8; ++c) corners[c] = RegionTree::encodeCornerDistance(subtree.corner_distance[leaf][c], corner_unit);
+      for (int c = 0; c < 8; ++c)
+        corners[c] = RegionTree::encodeCornerDistance(subtree.corner_distance[leaf][c], corner_unit);
       tree.leaf_corner_distance.push_back(corners);
       if (subtree.list_length[leaf] == RegionTree::kNoList) {
         tree.leaf_list.push_back(RegionTree::kNoList);
@@ -1293,15 +1301,15 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   stats.longest_list = longest;
   stats.distinct_lists = std::int64_t(tree.list_offsets.size()) - 1;
   stats.coarsened = budget.exceeded;
-  stats.memory_bytes = capacityBytes(tree.nodes) + capacityBytes(tree.leaf_list) + capacityBytes(tree.leaf_lower_bound) +
-                       capacityBytes(tree.leaf_corner_distance) + capacityBytes(tree.list_offsets) +
-                       capacityBytes(tree.list_entry_ids) +
-                       capacityBytes(tree.list_high_ids) + capacityBytes(tree.list_entry_bounds) +
-                       capacityBytes(geometry.mesh.vertices) + capacityBytes(geometry.mesh.triangles) +
-                       capacityBytes(geometry.corners.in_leaf_order) + capacityBytes(geometry.corners.leaf_position) +
-                       capacityBytes(geometry.spheres) + capacityBytes(geometry.planes) + capacityBytes(geometry.leaf_spheres) +
-                       capacityBytes(geometry.leaf_planes) + capacityBytes(geometry.bvh.nodes) + capacityBytes(geometry.compact_nodes) +
-                       capacityBytes(geometry.bvh.triangle_ids) + memoryBytes(model.sign);
+  stats.memory_bytes =
+      capacityBytes(tree.nodes) + capacityBytes(tree.leaf_list) + capacityBytes(tree.leaf_lower_bound) +
+      capacityBytes(tree.leaf_corner_distance) + capacityBytes(tree.list_offsets) + capacityBytes(tree.list_entry_ids) +
+      capacityBytes(tree.list_high_ids) + capacityBytes(tree.list_entry_bounds) +
+      capacityBytes(geometry.mesh.vertices) + capacityBytes(geometry.mesh.triangles) +
+      capacityBytes(geometry.corners.in_leaf_order) + capacityBytes(geometry.corners.leaf_position) +
+      capacityBytes(geometry.spheres) + capacityBytes(geometry.planes) + capacityBytes(geometry.leaf_spheres) +
+      capacityBytes(geometry.leaf_planes) + capacityBytes(geometry.bvh.nodes) + capacityBytes(geometry.compact_nodes) +
+      capacityBytes(geometry.bvh.triangle_ids) + memoryBytes(model.sign);
   stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (progress) progress(1.0);
   return model;

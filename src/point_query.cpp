@@ -198,7 +198,8 @@ void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, do
     }
 #endif
     detail::nearestTriangleCompactBounded(geometry, p, best_squared, best_triangle, closest, four);
-  } else if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.corners.in_leaf_order.size() == leaves) {
+  } else if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() &&
+             geometry.corners.in_leaf_order.size() == leaves) {
     detail::nearestTriangleCompact(geometry, p, best_squared, best_triangle, closest);
   } else {
     detail::nearestTriangle(geometry, p, best_squared, best_triangle, closest);
@@ -543,8 +544,9 @@ PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM
     // The kernel's distance and closest point round separately: a tiny distance may come with p == q.
     const Eigen::Vector3d offset = p_M - closest_M;
     const double length = offset.norm();
-    const Eigen::Vector3d g_M = length > 0 ? Eigen::Vector3d(offset / length)
-                                           : Eigen::Vector3d(model.sign.closure.orientation * unitNormal(model.geometry, triangle));
+    const Eigen::Vector3d g_M =
+        length > 0 ? Eigen::Vector3d(offset / length)
+                   : Eigen::Vector3d(model.sign.closure.orientation * unitNormal(model.geometry, triangle));
     result.gradient = X_WM.linear() * g_M;
     return result;
   }

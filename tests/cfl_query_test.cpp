@@ -1235,6 +1235,45 @@ TEST(ComputeDistance, SliversFannedAroundARefinedPatchMatchBruteForce) {
   EXPECT_EQ(failures.count(), 0);
 }
 
+// Meshes with triangles about as large as the whole mesh (slivers fanned around a refined patch, a ground
+// plane under a small part), each against itself crossing at a steep angle around a shared center: the
+// search first descends the node pairs whose oriented boxes overlap (Search::probeForContact). The answer
+// must be brute force's, 0 with both points on both returned triangles; and where the meshes are apart
+// (pushed out along the normal of the crossing), the pairs that descent tests must not stand in for the
+// closest one.
+TEST(ComputeDistance, CrossingMeshesWithHugeTrianglesMatchBruteForce) {
+  const auto slab = makeShape("refined_slab", makeRefinedSlab(), 0);
+  const auto ground = makeShape("ground_with_torus", makeGroundWithTorus(), 0);
+  test::Rng rng(31);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  Failures failures;
+  int overlapping = 0;
+  for (const Shape* shape : {slab.get(), ground.get()}) {
+    for (int n = 0; n < 24; ++n) {
+      Pose pose;
+      pose.X_WA = test::randomPose(rng, 2.0);
+      const Eigen::Vector3d axis = Eigen::Vector3d(unit(rng), unit(rng), 0.2 * unit(rng)).normalized();
+      const double angle = 1.0 + 0.5 * unit(rng);  // radians, steep: the two roots' boxes overlap deeply
+      const Eigen::Vector3d center = shape->model.bounds.center();
+      Eigen::Isometry3d X_AB = Eigen::Isometry3d::Identity();
+      X_AB.linear() = Eigen::AngleAxisd(angle, axis).toRotationMatrix();
+      // Every fourth pose pushed off along B's normal so far that the meshes may separate.
+      const double push = n % 4 == 3 ? 0.3 * shape->diagonal : 0.0;
+      X_AB.translation() = center - X_AB.linear() * center +
+                           0.05 * shape->diagonal * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)) +
+                           push * (X_AB.linear() * Eigen::Vector3d::UnitZ());
+      pose.X_WB = pose.X_WA * X_AB;
+      pose.kind = push > 0 ? "crossing, pushed apart" : "crossing";
+      const DistanceResult truth = bruteForceDistance(shape->model, pose.X_WA, shape->model, pose.X_WB);
+      overlapping += truth.distance == 0;
+      checkResult(computeDistance(shape->cfl, pose.X_WA, shape->model, pose.X_WB), truth, *shape, *shape, pose,
+                  "plain", failures);
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+  EXPECT_GE(overlapping, 30);
+}
+
 // B's Bvh leaves that reach past A's grid go on whole as node pairs with A's Bvh (Search::expand), their
 // triangles inside the grid included: flat meshes, slivers among them, at the poses where B straddles the
 // grid's boundary must match brute force.

@@ -1274,6 +1274,46 @@ TEST(ComputeDistance, CrossingMeshesWithHugeTrianglesMatchBruteForce) {
   EXPECT_GE(overlapping, 30);
 }
 
+// B nearly level over a large flat part of A, inside A's grid: where the leaves B's nodes meet list only a
+// few triangles (the ground's), the node is paired with them and split on its oriented boxes
+// (Search::pairWithShortLists). Its triangles nearly tie, so a pair the lists miss, or a bound that
+// overshoots, changes the answer. B lies over the ground, past its edges, beside and over the torus, and
+// below the ground.
+TEST(ComputeDistance, LevelMeshesOverAGroundPlaneMatchBruteForce) {
+  const Shape& a = shape("ground_torus");
+  const auto sheet = makeShape("level_sheet", test::makeWavySheet(0.6, 0.02, 10), 0);
+  const auto small_sheet = makeShape("small_level_sheet", test::makeWavySheet(0.15, 0.005, 6), 0);
+  const Shape* level[] = {sheet.get(), small_sheet.get(), &shape("thin_slab")};
+  test::Rng rng(2718);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  Failures failures;
+  int poses = 0;
+  for (const Shape* b : level) {
+    for (double height : {0.05, 0.2, 0.3, 0.5, 1.0, 2.5, -0.1, -0.4, -1.5}) {
+      for (int n = 0; n < 12; ++n) {
+        const double tilt = 0.02 * unit(rng);
+        const Eigen::Matrix3d R = (Eigen::AngleAxisd(tilt, Eigen::Vector3d(unit(rng), unit(rng), 0).normalized()) *
+                                   Eigen::AngleAxisd(3.2 * unit(rng), Eigen::Vector3d::UnitZ()))
+                                      .toRotationMatrix();
+        // Half the poses over or beside the torus, half anywhere over the ground and a little past its edges.
+        const double spread = n % 2 == 0 ? 0.5 : 6.0;
+        Pose pose{Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity(), "level over the ground"};
+        pose.X_WB.linear() = R;
+        const Eigen::Vector3d center = b->model.bounds.center();
+        const double lowest = height > 0 ? b->model.bounds.min.z() - center.z() : b->model.bounds.max.z() - center.z();
+        pose.X_WB.translation() = Eigen::Vector3d(spread * unit(rng), spread * unit(rng), height - lowest) - R * center;
+        const DistanceResult truth = bruteForceDistance(a.model, pose.X_WA, b->model, pose.X_WB);
+        if (truth.distance == 0) continue;
+        ++poses;
+        checkResult(computeDistance(a.cfl, pose.X_WA, b->model, pose.X_WB), truth, a, *b, pose,
+                    b->name + " at height " + std::to_string(height), failures);
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0) << "of " << poses << " poses";
+  EXPECT_GE(poses, 270);
+}
+
 // B's Bvh leaves that reach past A's grid go on whole as node pairs with A's Bvh (Search::expand), their
 // triangles inside the grid included: flat meshes, slivers among them, at the poses where B straddles the
 // grid's boundary must match brute force.

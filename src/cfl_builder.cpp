@@ -236,7 +236,7 @@ struct ListScratch {
   std::vector<std::uint32_t> tested;
   std::vector<double> tested_squared;
   std::vector<Eigen::Vector3d> tested_closest;
-  // Per candidate that the gather already tested (see computeCellList's certainlyListed), by its index in
+  // Per candidate that the gather already tested (see computeCellList's testEarly), by its index in
   // `candidates`. Written by index into a vector that only grows: pushed one by one, its elements went
   // through a call each.
   struct EarlyTest {
@@ -530,18 +530,54 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   };
   // The masks computed while counting are kept for culling below.
   std::vector<std::int32_t>& candidates = scratch.candidates;
-  // Tests candidates[n]; scratch.early must hold n.
-  auto certainlyListed = [&](std::uint32_t n) CFL_ALWAYS_INLINE {
-    const int i = candidates[n];
-    const std::uint8_t mask = context.culling ? edgeRegionMask(i) : 0;
-    if (mask) {
-      scratch.early[n] = {0, 0, kNotTested, mask};
-      return false;
+  // The candidates whose culling mask and exclusion tests have been computed while counting: candidates
+  // [0, early_masked) have their masks in scratch.early, and those without a mask (the only ones that can be
+  // certain) their tests too, except the last few in `early_pending`, which wait for a batch of four of the
+  // query kernels (the same bits as one at a time). Entry n is certainly listed when its mask is 0, the tests
+  // keep it and its center distance is below `certain`; each such entry is passed to `listed`, in the order
+  // of the candidates, until `listed` returns true (and then so does the test).
+  std::uint32_t early_masked = 0;
+  std::uint32_t early_pending[4];
+  int early_pending_count = 0;
+  auto runEarlyPending = [&](auto&& listed) CFL_ALWAYS_INLINE {
+    const int lanes = early_pending_count;
+    early_pending_count = 0;
+    double squared[4];
+    Eigen::Vector3d closest[4];
+    if (context.four != nullptr && lanes > 1) {
+      const std::array<Eigen::Vector3d, 3>* triangles[4];
+      for (int j = 0; j < 4; ++j) {
+        triangles[j] = &geometry.corners.in_leaf_order[candidates[early_pending[j < lanes ? j : 0]]];
+      }
+      context.four(center, triangles, squared, closest);
+    } else {
+      for (int j = 0; j < lanes; ++j) {
+        squared[j] = context.squaredDistance(center, geometry.corners.in_leaf_order[candidates[early_pending[j]]],
+                                             &closest[j]);
+      }
     }
-    double d_min, d_center;
-    const bool excluded = exclusionTests(i, d_min, d_center);
-    scratch.early[n] = {d_min, d_center, excluded ? kExcluded : kKept, mask};
-    return !excluded && d_center < certain;
+    for (int j = 0; j < lanes; ++j) {
+      const std::uint32_t n = early_pending[j];
+      double d_min, d_center;
+      const bool excluded = exclusionTestsGiven(candidates[n], squared[j], closest[j], d_min, d_center);
+      scratch.early[n] = {d_min, d_center, excluded ? kExcluded : kKept, 0};
+      if (!excluded && d_center < certain && listed(n)) return true;
+    }
+    return false;
+  };
+  // Tests candidates [early_masked, end), leaving up to three in early_pending unless `flush`.
+  auto testEarly = [&](std::uint32_t end, bool flush, auto&& listed) CFL_ALWAYS_INLINE {
+    for (; early_masked < end; ++early_masked) {
+      const std::uint32_t n = early_masked;
+      const std::uint8_t mask = context.culling ? edgeRegionMask(candidates[n]) : 0;
+      if (mask) {
+        scratch.early[n] = {0, 0, kNotTested, mask};
+        continue;
+      }
+      early_pending[early_pending_count++] = n;
+      if (early_pending_count == 4 && runEarlyPending(listed)) return true;
+    }
+    return flush && early_pending_count > 0 && runEarlyPending(listed);
   };
 
   // Whether the cell splits whatever the rest of its list (see the rule after the walk), and the state of that
@@ -555,13 +591,18 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
   // candidates, and the rule holds as soon as it holds for the candidates found so far (both sums only
   // grow): the walk tests the candidates as it finds them and stops there.
   const bool split_while_walking = split_early && context.largest_edge <= largest_mean;
-  // Tests candidates[n] for the rule; returns whether the rule now holds, excess being the candidates' excess.
+  // Counts certain entry n for the rule; returns whether the rule now holds, excess being the candidates' excess.
   auto splitsCertainly = [&](std::uint32_t n, double excess) CFL_ALWAYS_INLINE {
-    if (!certainlyListed(n)) return false;
     const int i = candidates[n];
     ++certain_entries;
     shortfall += std::max(0.0, largest_mean - (*split_edges)[leaf_triangle[i]]);
     return certain_entries > kListTarget && shortfall > excess * (1 + 1e-6);
+  };
+  auto splitsWhileWalking = [&](std::uint32_t n) CFL_ALWAYS_INLINE { return splitsCertainly(n, 0.0); };
+  auto countsPastStored = [&](std::uint32_t) CFL_ALWAYS_INLINE { return ++certain_count > longest_stored; };
+  auto farLeafWithoutList = [&] {
+    out.lower_bound = std::max(0.0, center_lower);
+    return RegionTree::kNoList;
   };
   auto certainSplit = [&] {
     out.lower_bound = std::max(0.0, center_lower);
@@ -586,16 +627,9 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
         scratch.early.resize(2 * candidates.size());
       }
       if (count_early) {
-        for (std::size_t n = candidates.size() - node.count; n < candidates.size(); ++n) {
-          if (certainlyListed(std::uint32_t(n)) && ++certain_count > longest_stored) {
-            out.lower_bound = std::max(0.0, center_lower);
-            return RegionTree::kNoList;
-          }
-        }
+        if (testEarly(std::uint32_t(candidates.size()), false, countsPastStored)) return farLeafWithoutList();
       } else if (split_while_walking) {
-        for (std::size_t n = candidates.size() - node.count; n < candidates.size(); ++n) {
-          if (splitsCertainly(std::uint32_t(n), 0.0)) return certainSplit();
-        }
+        if (testEarly(std::uint32_t(candidates.size()), false, splitsWhileWalking)) return certainSplit();
       }
     } else {
       // Counting, the nearer child first: triangles nearer the center are the likelier to be certain, so the
@@ -608,7 +642,9 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     }
   }
   const std::uint32_t candidate_count = static_cast<std::uint32_t>(candidates.size());
-  // Candidates whose culling mask and exclusion tests certainlyListed has computed, in order.
+  if (count_early && testEarly(candidate_count, true, countsPastStored)) return farLeafWithoutList();
+  if (split_while_walking && testEarly(candidate_count, true, splitsWhileWalking)) return certainSplit();
+  // Candidates whose culling mask and exclusion tests testEarly has computed, in order.
   std::uint32_t early_tested = count_early || split_while_walking ? candidate_count : 0;
   // Whether the cell splits whatever the rest of its list. The listed lower bound is at most the center's
   // distance (the list holds a nearest triangle of the center). With T the largest mean edge that lets the
@@ -622,9 +658,10 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     for (std::uint32_t n = 0; n < candidate_count; ++n) {
       excess += std::max(0.0, (*split_edges)[leaf_triangle[candidates[n]]] - largest_mean);
     }
-    while (early_tested < candidate_count) {
-      if (splitsCertainly(early_tested++, excess)) return certainSplit();
+    if (testEarly(candidate_count, true, [&](std::uint32_t n) { return splitsCertainly(n, excess); })) {
+      return certainSplit();
     }
+    early_tested = candidate_count;
   }
 
   // Paper section 3.6, in a form that is provably conservative on any mesh: triangle i may leave the

@@ -205,26 +205,13 @@ inline void nearestTriangle(const MeshModel& model, const Eigen::Vector3d& p, do
   while (top > 0) {
     const BvhNode& node = nodes[stack[--top]];
     if (node.isLeaf()) {
-      if (four != nullptr) {
-        PendingTriangleTests tests;
-        tests.four = four;
-        for (int i = node.first; i < node.first + node.count; ++i) {
-          tests.add(p, model.corners.in_leaf_order[i], model.bvh.triangle_ids[i], best_squared, best_triangle, closest);
-        }
-        tests.run(p, best_squared, best_triangle, closest);
-        continue;
-      }
+      // Without a kernel the tests run one by one as they are added.
+      PendingTriangleTests tests;
+      tests.four = four;
       for (int i = node.first; i < node.first + node.count; ++i) {
-        const int t = model.bvh.triangle_ids[i];
-        const auto& c = model.corners[t];
-        Eigen::Vector3d q;
-        const double d = pointTriangleSquaredDistance(p, c[0], c[1], c[2], &q);
-        if (d < best_squared) {
-          best_squared = d;
-          best_triangle = t;
-          if (closest) *closest = q;
-        }
+        tests.add(p, model.corners.in_leaf_order[i], model.bvh.triangle_ids[i], best_squared, best_triangle, closest);
       }
+      tests.run(p, best_squared, best_triangle, closest);
       continue;
     }
     const double d_left = pointBoxSquaredDistance(p, nodes[node.first].box());

@@ -36,9 +36,10 @@ __m256d dot3(const __m256d u[3], const __m256d v[3]) {
                        _mm256_mul_pd(u[2], v[2]));
 }
 // The corners of four triangles (corner[3 i + j]: coordinate j of corner i), rotated per lane so that the
-// corner nearestToPlane picks by its plane offsets comes first: origin, next, previous.
-void rotateToNearest(const __m256d corner[9], const __m256d offsets[3], __m256d origin[3], __m256d next[3],
-                     __m256d previous[3]) {
+// corner nearestToPlane picks by its plane offsets comes first: origin, next, previous. Inlined: out of line,
+// its arrays of lanes went through memory.
+CFL_ALWAYS_INLINE inline void rotateToNearest(const __m256d corner[9], const __m256d offsets[3], __m256d origin[3],
+                                                __m256d next[3], __m256d previous[3]) {
   const __m256d sign = _mm256_set1_pd(-0.0);
   const __m256d a0 = _mm256_andnot_pd(sign, offsets[0]), a1 = _mm256_andnot_pd(sign, offsets[1]),
                 a2 = _mm256_andnot_pd(sign, offsets[2]);

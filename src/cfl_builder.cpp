@@ -1147,14 +1147,9 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   arena.execute([&] { sign_task.run([&] { model.sign = analyzeMeshSign(geometry); }); });
   const TaskGroupWaiter sign_waiter{arena, sign_task};
   const Topology topology = options.topology_culling ? makeTopology(geometry) : Topology();
-  detail::PointTriangles4 four = nullptr;
-  detail::PointTriangle1 one = &pointTriangleSquaredDistance;
-#if CFL_X86_64_V3_KERNELS
-  if (activeQueryKernels() == QueryKernels::kX86_64_V3) {
-    four = &detail::x86_64_v3::pointTriangleSquaredDistances4;
-    one = &detail::x86_64_v3::pointTriangleSquaredDistance;
-  }
-#endif
+  const detail::QueryKernelTable& kernels = detail::activeQueryKernelTable();
+  const detail::PointTriangles4 four = kernels.point_triangles4;
+  const detail::PointTriangle1 one = kernels.point_triangle;
   std::vector<double> triangle_edge(geometry.corners.size());
   for (std::size_t t = 0; t < triangle_edge.size(); ++t) {
     const auto& c = geometry.corners[t];

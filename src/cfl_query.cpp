@@ -1,6 +1,7 @@
-// The public queries: each runs in the build of the search that activeQueryKernels names
-// (detail/query_kernels.h).
+// The public queries: each picks the kernel table of the instruction set that activeQueryKernels names
+// (detail/query_kernels.h) and runs the search (distance_search.cpp) with it.
 
+#include "detail/distance_search.h"
 #include "detail/query_kernels.h"
 
 #include <atomic>
@@ -29,7 +30,7 @@ void validatePose(const Eigen::Isometry3d& X, const char* what) {
 
 namespace {
 
-// The build's table, or null when this library lacks it or this CPU cannot run it.
+// The instruction set's table, or null when this library lacks it or this CPU cannot run it.
 const detail::QueryKernelTable* availableTable(QueryKernels kernels) {
   switch (kernels) {
     case QueryKernels::kGeneric:
@@ -48,13 +49,13 @@ const detail::QueryKernelTable* availableTable(QueryKernels kernels) {
 
 std::string unavailableMessage(QueryKernels kernels) {
   if (kernels != QueryKernels::kGeneric && kernels != QueryKernels::kX86_64_V3) {
-    return "QueryKernels value " + std::to_string(static_cast<int>(kernels)) + " names no build of the cfl query";
+    return "QueryKernels value " + std::to_string(static_cast<int>(kernels)) + " names no kernel set of the cfl query";
   }
   std::string message = std::string("cfl query kernels '") + queryKernelsName(kernels) + "' are not available: ";
 #if CFL_X86_64_V3_KERNELS
   message += "this CPU does not run x86-64-v3 (AVX2, BMI2, FMA, F16C, LZCNT, MOVBE)";
 #else
-  message += "this build of cfl has no x86-64-v3 copy of the query (it needs GCC 12 or later on x86-64)";
+  message += "this build of cfl has no x86-64-v3 kernels (they need GCC 12 or later on x86-64)";
 #endif
   return message;
 }
@@ -76,8 +77,10 @@ const detail::QueryKernelTable& tableFromEnvironment() {
 
 std::atomic<const detail::QueryKernelTable*> active_table{nullptr};
 
-// Read on every query: one load, then the call through the table.
-const detail::QueryKernelTable& activeTable() {
+}  // namespace
+
+// Read on every query: one load.
+const detail::QueryKernelTable& detail::activeQueryKernelTable() {
   if (const detail::QueryKernelTable* table = active_table.load(std::memory_order_acquire)) return *table;
   // A static's initializer that throws runs again at the next call: a bad CFL_KERNELS fails every query.
   static const detail::QueryKernelTable& chosen = tableFromEnvironment();
@@ -86,9 +89,7 @@ const detail::QueryKernelTable& activeTable() {
   return *active_table.load(std::memory_order_acquire);
 }
 
-}  // namespace
-
-QueryKernels activeQueryKernels() { return activeTable().kernels; }
+QueryKernels activeQueryKernels() { return detail::activeQueryKernelTable().kernels; }
 
 bool queryKernelsAvailable(QueryKernels kernels) { return availableTable(kernels) != nullptr; }
 
@@ -110,27 +111,27 @@ const char* queryKernelsName(QueryKernels kernels) {
 
 DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
                                const Eigen::Isometry3d& X_WB, const DistanceOptions& options) {
-  return activeTable().distance(a, X_WA, b, X_WB, options, nullptr);
+  return detail::distanceImpl(detail::activeQueryKernelTable(), a, X_WA, b, X_WB, options, nullptr);
 }
 
 DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA, const CflModel& b,
                                const Eigen::Isometry3d& X_WB, const DistanceOptions& options) {
-  return activeTable().distance(a, X_WA, b.geometry, X_WB, options, &b);
+  return detail::distanceImpl(detail::activeQueryKernelTable(), a, X_WA, b.geometry, X_WB, options, &b);
 }
 
 DistanceResult computeDistance(const CflModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
                                const Eigen::Isometry3d& X_WB, DistanceCache& cache, const DistanceOptions& options) {
-  return activeTable().cached_distance(a, X_WA, b, X_WB, cache, options);
+  return detail::cachedDistanceImpl(detail::activeQueryKernelTable(), a, X_WA, b, X_WB, cache, options);
 }
 
 DistanceResult bruteForceDistance(const MeshModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
                                   const Eigen::Isometry3d& X_WB) {
-  return activeTable().brute_force(a, X_WA, b, X_WB);
+  return detail::bruteForceImpl(detail::activeQueryKernelTable(), a, X_WA, b, X_WB);
 }
 
 bool computeCollision(const MeshModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
                       const Eigen::Isometry3d& X_WB, std::size_t max_contacts, std::vector<Contact>* contacts) {
-  return activeTable().collision(a, X_WA, b, X_WB, max_contacts, contacts);
+  return detail::collisionImpl(detail::activeQueryKernelTable(), a, X_WA, b, X_WB, max_contacts, contacts);
 }
 
 }  // namespace cfl

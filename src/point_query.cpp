@@ -187,17 +187,15 @@ std::unique_ptr<std::uint32_t[]> spatialOrder(const CflModel& model, const Eigen
 // The Bvh walk: on the compact nodes when the model has them (makeMeshModel builds them; a MeshModel put
 // together by hand may not).
 void nearestTriangleFast(const MeshModel& geometry, const Eigen::Vector3d& p, double& best_squared, int& best_triangle,
-                         Eigen::Vector3d* closest, detail::PointTriangles4 four) {
+                         Eigen::Vector3d* closest, const detail::QueryKernelTable& kernels) {
   const std::size_t leaves = geometry.bvh.triangle_ids.size();
   if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() && geometry.corners.in_leaf_order.size() == leaves &&
       geometry.leaf_spheres.size() == leaves && geometry.leaf_planes.size() == leaves) {
-#if CFL_X86_64_V3_KERNELS
-    if (four != nullptr) {
-      detail::x86_64_v3::nearestTriangleBounded(geometry, p, best_squared, best_triangle, closest);
+    if (kernels.nearest_triangle_bounded != nullptr) {
+      kernels.nearest_triangle_bounded(geometry, p, best_squared, best_triangle, closest);
       return;
     }
-#endif
-    detail::nearestTriangleCompactBounded(geometry, p, best_squared, best_triangle, closest, four);
+    detail::nearestTriangleCompactBounded(geometry, p, best_squared, best_triangle, closest, kernels.point_triangles4);
   } else if (geometry.compact_nodes.size() == geometry.bvh.nodes.size() &&
              geometry.corners.in_leaf_order.size() == leaves) {
     detail::nearestTriangleCompact(geometry, p, best_squared, best_triangle, closest);
@@ -227,33 +225,22 @@ RegionCell locateNear(const RegionTree& regions, const Eigen::Vector3d& p_M, det
   return cache->cell;
 }
 
-// The one-triangle kernel of the build whose four-triangle kernel is `four` (fourTriangleKernel's): the same
-// bits either way, fewer instructions in the x86-64-v3 build.
-detail::PointTriangle1 oneTriangleKernel([[maybe_unused]] detail::PointTriangles4 four) {
-#if CFL_X86_64_V3_KERNELS
-  if (four != nullptr) return &detail::x86_64_v3::pointTriangleSquaredDistance;
-#endif
-  return &pointTriangleSquaredDistance;
-}
-
 // The closest triangle to p_M strictly within sqrt(best_squared) (the entry value), through the point's leaf
 // when it lies in the regions and has a list, else through the Bvh. best_triangle stays -1 when there is none.
 // `hint_triangle`: a triangle likely to be nearly as close as the closest (a nearby point's), or -1.
 void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& best_squared, int& best_triangle,
-                   Eigen::Vector3d& closest, detail::PointTriangles4 four, detail::PointListCache* cache,
+                   Eigen::Vector3d& closest, const detail::QueryKernelTable& kernels, detail::PointListCache* cache,
                    int hint_triangle = -1) {
   const RegionTree& regions = model.regions;
-#if CFL_X86_64_V3_KERNELS
-  if (four != nullptr && cache != nullptr && cache->located && cache->leaf == cache->cell.leaf &&
-      insideCachedCell(*cache, p_M)) {
+  if (kernels.scan_point_list_cached != nullptr && cache != nullptr && cache->located &&
+      cache->leaf == cache->cell.leaf && insideCachedCell(*cache, p_M)) {
     // The point lies in the leaf whose list the cache holds laid out (it has a list, not empty): what the
     // path below does for it, without finding the cell and the list again.
     const double leaf_bound = double(regions.leaf_lower_bound[cache->leaf]) * kBoundShrink;
     if (leaf_bound * leaf_bound >= best_squared && leaf_bound > 0) return;
-    detail::x86_64_v3::scanPointListCached(p_M, *cache, model.geometry, best_squared, best_triangle, closest);
+    kernels.scan_point_list_cached(p_M, *cache, model.geometry, best_squared, best_triangle, closest);
     return;
   }
-#endif
   const Aabb box = regions.bounds();
   const bool inside = !regions.nodes.empty() && (p_M.array() >= box.min.array()).all() &&
                       (p_M.array() <= box.max.array()).all();
@@ -267,8 +254,7 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       const std::uint32_t length = regions.listLength(list);
       const std::uint8_t* bounds = regions.listBoundsBegin(cell.leaf);
       const double unit = regions.entryBoundUnit(cell.depth) * kBoundShrink;
-#if CFL_X86_64_V3_KERNELS
-      if (four != nullptr && cache != nullptr && length > 0) {
+      if (kernels.scan_point_list_cached != nullptr && cache != nullptr && length > 0) {
         if (cache->leaf != cell.leaf) {
           // A new leaf: its list's blocks are laid out as scans reach them.
           const std::int32_t base = regions.listBase(list);
@@ -283,19 +269,18 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
             cache->lanes.resize(blocks * detail::PointListCache::kBlock);
           }
         }
-        detail::x86_64_v3::scanPointListCached(p_M, *cache, model.geometry, best_squared, best_triangle, closest);
+        kernels.scan_point_list_cached(p_M, *cache, model.geometry, best_squared, best_triangle, closest);
         return;
       }
-      if (four != nullptr) {
-        // The x86-64-v3 build's scan: the same bounds four entries at a time, the same answer.
+      if (kernels.scan_point_list != nullptr) {
+        // The kernels' scan (x86-64-v3: the same bounds four entries at a time), the same answer as below.
         const std::int32_t base = regions.listBase(list);
         const std::uint16_t* low = regions.list_entry_ids.data() + regions.listIdsBegin(list) + 2;
         const detail::PointListScan scan{low, base >= 0 ? nullptr : regions.list_high_ids.data() + std::uint32_t(~base),
                                          base, bounds, length, unit};
-        detail::x86_64_v3::scanPointList(p_M, scan, model.geometry, best_squared, best_triangle, closest);
+        kernels.scan_point_list(p_M, scan, model.geometry, best_squared, best_triangle, closest);
         return;
       }
-#endif
       const auto& corners = model.geometry.corners;
       const auto& spheres = model.geometry.spheres;
       const auto& planes = model.geometry.planes;
@@ -306,7 +291,7 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       // coordinates, and the corners sit off the plane by a few ulps of the triangle's size.
       const double scale = p_M.cwiseAbs().sum();
       detail::PendingTriangleTests tests;
-      tests.four = four;
+      tests.four = kernels.point_triangles4;
       if (cache != nullptr) {
         tests.known_id = cache->known_triangle;
         tests.known_squared = cache->known_squared;
@@ -361,7 +346,7 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       double found_squared = seed_squared;
       int found = -1;
       Eigen::Vector3d q;
-      nearestTriangleFast(model.geometry, p_M, found_squared, found, &q, four);
+      nearestTriangleFast(model.geometry, p_M, found_squared, found, &q, kernels);
       if (found >= 0) {
         best_squared = found_squared;
         best_triangle = found;
@@ -371,12 +356,12 @@ void searchNearest(const CflModel& model, const Eigen::Vector3d& p_M, double& be
       // Unreachable unless a corner distance were wrong: the unseeded walk below stays exact regardless.
     }
   }
-  nearestTriangleFast(model.geometry, p_M, best_squared, best_triangle, &closest, four);
+  nearestTriangleFast(model.geometry, p_M, best_squared, best_triangle, &closest, kernels);
 }
 
 // searchNearestFrom's searches, once the hint is known.
 void searchSeeded(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
-                  int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four,
+                  int& best_triangle, Eigen::Vector3d& closest, const detail::QueryKernelTable& kernels,
                   detail::PointListCache* cache, int hint_triangle) {
   const double seed = hint_squared * (1 + 1e-9);
   if (seed > 0 && seed < best_squared) {
@@ -384,7 +369,7 @@ void searchSeeded(const CflModel& model, double hint_squared, const Eigen::Vecto
     int found = -1;
     Eigen::Vector3d q;
     // The seed already holds the hint triangle's distance: no need for the Bvh walk to test it again.
-    searchNearest(model, p_M, found_squared, found, q, four, cache);
+    searchNearest(model, p_M, found_squared, found, q, kernels, cache);
     if (found >= 0) {
       best_squared = found_squared;
       best_triangle = found;
@@ -392,7 +377,7 @@ void searchSeeded(const CflModel& model, double hint_squared, const Eigen::Vecto
       return;
     }
   }
-  searchNearest(model, p_M, best_squared, best_triangle, closest, four, cache, hint_triangle);
+  searchNearest(model, p_M, best_squared, best_triangle, closest, kernels, cache, hint_triangle);
 }
 
 // searchNearest with a hint: `hint_squared` (or infinity), a bound that is likely to be a little above the
@@ -404,7 +389,7 @@ void searchSeeded(const CflModel& model, double hint_squared, const Eigen::Vecto
 // under the closest), and then the plain search runs. `hint_triangle` (or -1): a nearby point's closest
 // triangle, whose exact distance tightens the hint.
 void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::Vector3d& p_M, double& best_squared,
-                       int& best_triangle, Eigen::Vector3d& closest, detail::PointTriangles4 four,
+                       int& best_triangle, Eigen::Vector3d& closest, const detail::QueryKernelTable& kernels,
                        detail::PointListCache* cache, int hint_triangle) {
   if (hint_triangle >= 0) {
     // The nearby point's closest triangle, at its exact distance from this point, is mostly this point's
@@ -413,7 +398,7 @@ void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::
     // search minimizes, so the least is no more.
     const auto& c = model.geometry.corners[hint_triangle];
     Eigen::Vector3d q;
-    const double d = oneTriangleKernel(four)(p_M, c[0], c[1], c[2], &q);
+    const double d = kernels.point_triangle(p_M, c[0], c[1], c[2], &q);
     hint_squared = std::min(hint_squared, d);
     if (cache != nullptr) {
       // The scans take this result (the kernel of their build's bits) when they reach the triangle.
@@ -422,7 +407,7 @@ void searchNearestFrom(const CflModel& model, double hint_squared, const Eigen::
       cache->known_closest = q;
     }
   }
-  searchSeeded(model, hint_squared, p_M, best_squared, best_triangle, closest, four, cache, hint_triangle);
+  searchSeeded(model, hint_squared, p_M, best_squared, best_triangle, closest, kernels, cache, hint_triangle);
   if (cache != nullptr) cache->known_triangle = -1;
 }
 
@@ -483,15 +468,6 @@ Eigen::Vector3d pseudonormal(const CflModel& model, int t, const Eigen::Vector3d
   return sign.vertex_normals[sign.welded_vertex[geometry.mesh.triangles[t][k]]];
 }
 
-// The exact tests' four-triangle kernel of the query build in use (cfl/query_kernels.h), nullptr in the
-// generic build: both give the same bits.
-detail::PointTriangles4 fourTriangleKernel() {
-#if CFL_X86_64_V3_KERNELS
-  if (activeQueryKernels() == QueryKernels::kX86_64_V3) return &detail::x86_64_v3::pointTriangleSquaredDistances4;
-#endif
-  return nullptr;
-}
-
 void validateOptions(const CflModel& model, const PointQueryOptions& options) {
   if (!(options.upper_bound >= 0)) {
     std::ostringstream message;
@@ -523,7 +499,7 @@ void validatePoint(const Eigen::Vector3d& p_W, const char* what) {
 // computed once per batch. `hint_squared`: see searchNearestFrom.
 PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Isometry3d& X_MW,
                             const Eigen::Vector3d& p_W,
-                            const PointQueryOptions& options, detail::PointTriangles4 four,
+                            const PointQueryOptions& options, const detail::QueryKernelTable& kernels,
                             detail::PointListCache* cache = nullptr,
                             double hint_squared = std::numeric_limits<double>::infinity(), int hint_triangle = -1) {
   const Eigen::Vector3d p_M = X_MW * p_W;
@@ -531,7 +507,7 @@ PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM
   double best_squared = std::isinf(options.upper_bound) ? infinity : options.upper_bound * options.upper_bound;
   int triangle = -1;
   Eigen::Vector3d closest_M = Eigen::Vector3d::Zero();
-  searchNearestFrom(model, hint_squared, p_M, best_squared, triangle, closest_M, four, cache, hint_triangle);
+  searchNearestFrom(model, hint_squared, p_M, best_squared, triangle, closest_M, kernels, cache, hint_triangle);
   double distance = triangle >= 0 ? std::sqrt(best_squared) : infinity;
   if (triangle >= 0 && !(distance < options.upper_bound)) triangle = -1, distance = infinity;  // rounding at the bound
 
@@ -561,7 +537,7 @@ PointDistance pointDistance(const CflModel& model, const Eigen::Isometry3d& X_WM
     double any_squared = infinity;
     int any_triangle = -1;
     Eigen::Vector3d any_closest = Eigen::Vector3d::Zero();
-    searchNearest(model, p_M, any_squared, any_triangle, any_closest, four, cache);
+    searchNearest(model, p_M, any_squared, any_triangle, any_closest, kernels, cache);
     inside = any_triangle >= 0 && any_squared > 0 && pseudonormal(model, any_triangle, p_M).dot(p_M - any_closest) < 0;
   }
   if (triangle < 0) {
@@ -596,7 +572,8 @@ PointDistance computePointDistance(const CflModel& model, const Eigen::Isometry3
   validatePose(X_WM, "X_WM");
   validatePoint(p_W, "p_W");
   validateOptions(model, options);
-  return pointDistance(model, X_WM, X_WM.inverse(Eigen::Isometry), p_W, options, fourTriangleKernel());
+  const detail::QueryKernelTable& kernels = detail::activeQueryKernelTable();
+  return pointDistance(model, X_WM, X_WM.inverse(Eigen::Isometry), p_W, options, kernels);
 }
 
 void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM, const Eigen::Vector3d* points_W,
@@ -614,7 +591,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   }
   validateOptions(model, options);
   const int threads = batchThreadCount(options.threads, count);
-  const detail::PointTriangles4 four = fourTriangleKernel();
+  const detail::QueryKernelTable& kernels = detail::activeQueryKernelTable();
   const Eigen::Isometry3d X_MW = X_WM.inverse(Eigen::Isometry);
   // detail::parallelChunks, as computeDistances: each task writes only its own outputs, so they do not depend
   // on the schedule.
@@ -648,7 +625,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
         const double hint = previous_triangle >= 0 ? (points_W[i] - previous_closest_W).squaredNorm()
                                                    : std::numeric_limits<double>::infinity();
         results[i] =
-            pointDistance(model, X_WM, X_MW, points_W[i], options, four, &cache, hint, previous_triangle);
+            pointDistance(model, X_WM, X_MW, points_W[i], options, kernels, &cache, hint, previous_triangle);
         previous_closest_W = results[i].closest_point;
         previous_triangle = results[i].triangle;
       }
@@ -659,7 +636,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
     prefetcher.start(std::ptrdiff_t(begin), std::ptrdiff_t(end));
     for (std::size_t i = begin; i != end; ++i) {
       prefetcher.advance(std::ptrdiff_t(i), std::ptrdiff_t(end));
-      results[i] = pointDistance(model, X_WM, X_MW, points_W[i], options, four);
+      results[i] = pointDistance(model, X_WM, X_MW, points_W[i], options, kernels);
     }
   };
   inParallel(std::clamp<std::size_t>(count / (8 * std::size_t(threads)), 1, 256), queryRange);

@@ -1,14 +1,19 @@
-// The query's baseline build: the search compiled with the library's flags. The triangle kernels it runs are
-// the public ones (triangle_distance.cpp), built with the same flags.
+// The generic kernel table: the public triangle kernels (triangle_distance.cpp), compiled with the library's
+// flags. Its other entries are null: the search, the point query and the builder then run their own scalar
+// code, which each x86-64-v3 kernel matches bit for bit (see detail/query_kernels.h).
 
 #include "detail/query_kernels.h"
 
 namespace cfl::detail {
-namespace {
-#include "detail/distance_search.inc"
-}  // namespace
 
-const QueryKernelTable kGenericQueryKernels{QueryKernels::kGeneric, &distanceImpl, &cachedDistanceImpl,
-                                            &bruteForceImpl, &collisionImpl};
+const QueryKernelTable kGenericQueryKernels{QueryKernels::kGeneric,
+                                            &cfl::triangleTriangleSquaredDistance,
+                                            &cfl::trianglesIntersect,
+                                            &cfl::pointTriangleSquaredDistance,
+                                            /*point_triangles4=*/nullptr,
+                                            /*filter_list_candidates=*/nullptr,
+                                            /*scan_point_list=*/nullptr,
+                                            /*scan_point_list_cached=*/nullptr,
+                                            /*nearest_triangle_bounded=*/nullptr};
 
 }  // namespace cfl::detail

@@ -1,23 +1,20 @@
-// The query's x86-64-v3 build: the search compiled for AVX2, BMI2 and the VEX encodings (see
-// cfl/query_kernels.h; chosen at run time in cfl_query.cpp). Its triangle kernels are in
+// The x86-64-v3 kernel table (see cfl/query_kernels.h; chosen at run time in cfl_query.cpp) and the mesh
+// search's list filter for it. The triangle kernels and the point query's scans of this table are in
 // triangle_distance_x86_64_v3.cpp.
 //
-// Everything the search calls from a header (Eigen, the standard library, cfl's own headers) is declared in
-// detail/query_kernels.h, included before the target pragma: GCC compiles a function for the target in force
-// where it is declared, so the header functions this copy does not inline stay baseline code, and the linker,
-// which keeps one copy of each such function for the whole program, never picks one that needs AVX2 (objdump
-// finds no VEX instruction in this object's weak functions). Only what the include below defines, in its own
-// namespace, is compiled for x86-64-v3; and Eigen, configured before the pragma, keeps its 16-byte alignment
-// (that of FCL's and the caller's Isometry3d).
+// Every header is included before the target pragma: GCC compiles a function for the target in force where
+// it is declared, so the header functions this file does not inline stay baseline code, and the linker,
+// which keeps one copy of each such function for the whole program, never picks one that needs AVX2. Only
+// what this file defines is compiled for x86-64-v3; and Eigen, configured before the pragma, keeps its
+// 16-byte alignment (that of the caller's Isometry3d).
 //
-// Fused multiply-adds would save instructions again, but the results would differ from the baseline's in
-// the last bits, so from one machine to another, and the triangle kernels' exact arithmetic
+// Fused multiply-adds would save instructions, but the results would differ from the baseline's in the last
+// bits, so from one machine to another, and the triangle kernels' exact arithmetic
 // (detail/exact_arithmetic.h) needs products rounded as written: the library builds with -ffp-contract=off.
 
 #include "detail/query_kernels.h"
 
 #if CFL_X86_64_V3_KERNELS
-// The list filter's AVX2 intrinsics (see distance_search.inc), before the pragma as every other include.
 #include <immintrin.h>
 
 #pragma GCC push_options
@@ -26,17 +23,191 @@
 namespace cfl::detail {
 namespace x86_64_v3 {
 namespace {
-// Inside x86_64_v3, the search's calls to the triangle kernels find this build's (detail/query_kernels.h).
-// GCC's target pragma does not define __AVX2__: the search learns of it from this macro.
-#define CFL_SEARCH_AVX2 1
-#include "detail/distance_search.inc"
-#undef CFL_SEARCH_AVX2
+
+// planeOffset (distance_search.cpp) for four points, coordinates point[0..2], against four planes or one.
+__m256d planeOffsets(const __m256d normal[3], __m256d offset, const __m256d point[3]) {
+  return _mm256_sub_pd(
+      _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(normal[0], point[0]), _mm256_mul_pd(normal[1], point[1])),
+                    _mm256_mul_pd(normal[2], point[2])),
+      offset);
+}
+__m256d dot3(const __m256d u[3], const __m256d v[3]) {
+  return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(u[0], v[0]), _mm256_mul_pd(u[1], v[1])),
+                       _mm256_mul_pd(u[2], v[2]));
+}
+// The corners of four triangles (corner[3 i + j]: coordinate j of corner i), rotated per lane so that the
+// corner nearestToPlane picks by its plane offsets comes first: origin, next, previous. Inlined: out of line,
+// its arrays of lanes went through memory.
+CFL_ALWAYS_INLINE inline void rotateToNearest(const __m256d corner[9], const __m256d offsets[3], __m256d origin[3],
+                                                __m256d next[3], __m256d previous[3]) {
+  const __m256d sign = _mm256_set1_pd(-0.0);
+  const __m256d a0 = _mm256_andnot_pd(sign, offsets[0]), a1 = _mm256_andnot_pd(sign, offsets[1]),
+                a2 = _mm256_andnot_pd(sign, offsets[2]);
+  // nearestToPlane: a0 <= a1 ? (a0 <= a2 ? 0 : 2) : (a1 <= a2 ? 1 : 2).
+  const __m256d first_le_second = _mm256_cmp_pd(a0, a1, _CMP_LE_OQ);
+  const __m256d is0 = _mm256_and_pd(first_le_second, _mm256_cmp_pd(a0, a2, _CMP_LE_OQ));
+  const __m256d is1 = _mm256_andnot_pd(first_le_second, _mm256_cmp_pd(a1, a2, _CMP_LE_OQ));
+  const __m256d is2 = _mm256_andnot_pd(_mm256_or_pd(is0, is1), _mm256_castsi256_pd(_mm256_set1_epi64x(-1)));
+  for (int j = 0; j < 3; ++j) {
+    const __m256d c0 = corner[j], c1 = corner[3 + j], c2 = corner[6 + j];
+    origin[j] = _mm256_blendv_pd(_mm256_blendv_pd(c0, c1, is1), c2, is2);
+    next[j] = _mm256_blendv_pd(_mm256_blendv_pd(c1, c2, is1), c0, is2);
+    previous[j] = _mm256_blendv_pd(_mm256_blendv_pd(c2, c0, is1), c1, is2);
+  }
+}
+// The search's edgeAxesSeparate four pairs at a time, the same operations in the same order (std::min(x, y)
+// is _mm256_min_pd(y, x), NaNs included), at `limit`: all lanes set where the axes separate the pair.
+// `corner_a`: A's four triangles' corners, `side`: their offsets from B's plane; `corner_b`: B's corners
+// (the same in every lane), `others`: their offsets from each of A's planes.
+__m256d edgeAxesSeparateByFour(const __m256d corner_a[9], const __m256d side[3], const __m256d corner_b[9],
+                               const __m256d others[3], __m256d limit) {
+  __m256d origin_a[3], next_a[3], previous_a[3], origin_b[3], next_b[3], previous_b[3];
+  rotateToNearest(corner_a, side, origin_a, next_a, previous_a);
+  rotateToNearest(corner_b, others, origin_b, next_b, previous_b);
+  __m256d edges_a[2][3], edges_b[2][3], offset[3];
+  for (int j = 0; j < 3; ++j) {
+    edges_a[0][j] = _mm256_sub_pd(next_a[j], origin_a[j]);
+    edges_a[1][j] = _mm256_sub_pd(previous_a[j], origin_a[j]);
+    edges_b[0][j] = _mm256_sub_pd(next_b[j], origin_b[j]);
+    edges_b[1][j] = _mm256_sub_pd(previous_b[j], origin_b[j]);
+    offset[j] = _mm256_sub_pd(origin_b[j], origin_a[j]);
+  }
+  const __m256d zero = _mm256_setzero_pd();
+  const __m256d limit_squared = _mm256_mul_pd(limit, limit);
+  __m256d separated = zero;
+  for (const auto& edge_b : edges_b) {
+    for (const auto& edge_a : edges_a) {
+      const __m256d axis[3] = {
+          _mm256_sub_pd(_mm256_mul_pd(edge_a[1], edge_b[2]), _mm256_mul_pd(edge_a[2], edge_b[1])),
+          _mm256_sub_pd(_mm256_mul_pd(edge_a[2], edge_b[0]), _mm256_mul_pd(edge_a[0], edge_b[2])),
+          _mm256_sub_pd(_mm256_mul_pd(edge_a[0], edge_b[1]), _mm256_mul_pd(edge_a[1], edge_b[0]))};
+      const __m256d a1 = dot3(edges_a[0], axis), a2 = dot3(edges_a[1], axis);
+      const __m256d b0 = dot3(offset, axis);
+      const __m256d b1 = _mm256_add_pd(b0, dot3(edges_b[0], axis)), b2 = _mm256_add_pd(b0, dot3(edges_b[1], axis));
+      const __m256d low_a = _mm256_min_pd(_mm256_min_pd(a2, a1), zero);
+      const __m256d high_a = _mm256_max_pd(_mm256_max_pd(a2, a1), zero);
+      const __m256d low_b = _mm256_min_pd(_mm256_min_pd(b2, b1), b0);
+      const __m256d high_b = _mm256_max_pd(_mm256_max_pd(b2, b1), b0);
+      const __m256d gap = _mm256_max_pd(_mm256_sub_pd(low_a, high_b), _mm256_sub_pd(low_b, high_a));
+      const __m256d apart = _mm256_and_pd(
+          _mm256_cmp_pd(gap, zero, _CMP_GT_OQ),
+          _mm256_cmp_pd(_mm256_mul_pd(gap, gap), _mm256_mul_pd(limit_squared, dot3(axis, axis)), _CMP_GE_OQ));
+      separated = _mm256_or_pd(separated, apart);
+    }
+  }
+  return separated;
+}
+
+// Rows of four doubles, one per candidate, into columns, one per value.
+inline void transpose(const __m256d r[4], __m256d* column) {
+  const __m256d t0 = _mm256_unpacklo_pd(r[0], r[1]), t1 = _mm256_unpackhi_pd(r[0], r[1]);
+  const __m256d t2 = _mm256_unpacklo_pd(r[2], r[3]), t3 = _mm256_unpackhi_pd(r[2], r[3]);
+  column[0] = _mm256_permute2f128_pd(t0, t2, 0x20);
+  column[1] = _mm256_permute2f128_pd(t1, t3, 0x20);
+  column[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
+  column[3] = _mm256_permute2f128_pd(t1, t3, 0x31);
+}
+
 }  // namespace
+
+// On a flat plate the lists are long and the spheres pass most of their entries, and B's plane and the
+// boxes, one candidate at a time behind them, cost more than the spheres: four at a time they cost less.
+std::size_t filterListCandidates(const ListFilter& filter, const int* ids, std::size_t count, int* kept,
+                                 std::size_t& near) {
+  constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  const Eigen::Vector4d* spheres = filter.spheres_a;
+  const std::array<Eigen::Vector3d, 3>* corners = filter.corners_a;
+  const std::int32_t* leaf_position = filter.leaf_position_a;
+  const __m256d limit = _mm256_set1_pd(filter.threshold);
+  const __m256d radius_b = _mm256_set1_pd(filter.radius_b);
+  const __m256d center[3] = {_mm256_set1_pd(filter.center_b[0]), _mm256_set1_pd(filter.center_b[1]),
+                             _mm256_set1_pd(filter.center_b[2])};
+  const __m256d normal[3] = {_mm256_set1_pd(filter.normal_b[0]), _mm256_set1_pd(filter.normal_b[1]),
+                             _mm256_set1_pd(filter.normal_b[2])};
+  const __m256d offset = _mm256_set1_pd(filter.offset_b);
+  const __m256d box_min_b[3] = {_mm256_set1_pd(filter.box_min_b[0]), _mm256_set1_pd(filter.box_min_b[1]),
+                                _mm256_set1_pd(filter.box_min_b[2])};
+  const __m256d box_max_b[3] = {_mm256_set1_pd(filter.box_max_b[0]), _mm256_set1_pd(filter.box_max_b[1]),
+                                _mm256_set1_pd(filter.box_max_b[2])};
+  const __m256d sign = _mm256_set1_pd(-0.0);
+  const Eigen::Vector4d* planes = filter.planes_a;
+  __m256d corner_b[9];
+  for (int k = 0; k < 9; ++k) corner_b[k] = _mm256_set1_pd(filter.corners_b[k / 3][k % 3]);
+  std::size_t n = 0;
+  for (; n + 4 <= count; n += 4) {
+    const int* t = ids + n;
+    // Loads and shuffles: on the AMD machine measured, gathers took longer than the scalar filter.
+    __m256d rows[4], sphere[4];
+    for (int k = 0; k < 4; ++k) rows[k] = _mm256_loadu_pd(spheres[t[k]].data());
+    transpose(rows, sphere);
+    // Spheres: |center gap|^2 < (threshold + r_a + r_b)^2, as in the search's scalar loop.
+    __m256d gap_squared = _mm256_setzero_pd();
+    for (int k = 0; k < 3; ++k) {
+      const __m256d d = _mm256_sub_pd(center[k], sphere[k]);
+      gap_squared = _mm256_add_pd(gap_squared, _mm256_mul_pd(d, d));
+    }
+    const __m256d reach = _mm256_add_pd(_mm256_add_pd(limit, sphere[3]), radius_b);
+    __m256d pass = _mm256_cmp_pd(gap_squared, _mm256_mul_pd(reach, reach), _CMP_LT_OQ);
+    // A's corners, nine values per candidate: two rows of four and the last one.
+    const double* c[4];
+    for (int k = 0; k < 4; ++k) c[k] = corners[std::size_t(leaf_position[t[k]])][0].data();
+    __m256d p[9];
+    for (int k = 0; k < 4; ++k) rows[k] = _mm256_loadu_pd(c[k]);
+    transpose(rows, p);
+    for (int k = 0; k < 4; ++k) rows[k] = _mm256_loadu_pd(c[k] + 4);
+    transpose(rows, p + 4);
+    p[8] = _mm256_set_pd(c[3][8], c[2][8], c[1][8], c[0][8]);
+    // B's plane: the corners' signed offsets all at least the threshold on one side.
+    __m256d low = _mm256_set1_pd(kInfinity), high = _mm256_set1_pd(-kInfinity);
+    __m256d side[3];  // A's corners against B's plane, as planeOffset
+    for (int k = 0; k < 3; ++k) {
+      side[k] = planeOffsets(normal, offset, p + 3 * k);
+      low = _mm256_min_pd(low, side[k]);
+      high = _mm256_max_pd(high, side[k]);
+    }
+    const __m256d plane_gap = _mm256_max_pd(low, _mm256_xor_pd(high, sign));
+    pass = _mm256_and_pd(pass, _mm256_cmp_pd(plane_gap, limit, _CMP_LT_OQ));
+    // The boxes: apart by the threshold along some coordinate axis.
+    __m256d box_gap = _mm256_set1_pd(-kInfinity);
+    for (int k = 0; k < 3; ++k) {
+      const __m256d box_min = _mm256_min_pd(_mm256_min_pd(p[k], p[k + 3]), p[k + 6]);
+      const __m256d box_max = _mm256_max_pd(_mm256_max_pd(p[k], p[k + 3]), p[k + 6]);
+      box_gap = _mm256_max_pd(box_gap, _mm256_max_pd(_mm256_sub_pd(box_min, box_max_b[k]),
+                                                     _mm256_sub_pd(box_min_b[k], box_max)));
+    }
+    pass = _mm256_and_pd(pass, _mm256_cmp_pd(box_gap, limit, _CMP_LT_OQ));
+    // Past the boxes, nearly every candidate on a sliver's list (huge fanned triangles whose boxes and
+    // planes cover the scan) goes on to the edge axes; they too are cheaper four at a time. One or two
+    // survivors are left to the scalar filter, whose cheaper tests dismiss some before the edge axes: on
+    // compact meshes, where few candidates survive the boxes, the four-wide test costs more than it saves.
+    if (__builtin_popcount(unsigned(_mm256_movemask_pd(pass))) >= 3) {
+      for (int k = 0; k < 4; ++k) rows[k] = _mm256_loadu_pd(planes[t[k]].data());
+      __m256d plane_a[4];
+      transpose(rows, plane_a);
+      __m256d others[3];  // B's corners against A's plane
+      for (int k = 0; k < 3; ++k) others[k] = planeOffsets(plane_a, plane_a[3], corner_b + 3 * k);
+      pass = _mm256_andnot_pd(edgeAxesSeparateByFour(p, side, corner_b, others, limit), pass);
+    }
+    const int mask = _mm256_movemask_pd(pass);
+    for (int k = 0; k < 4; ++k) {
+      kept[near] = t[k];
+      near += (mask >> k) & 1;
+    }
+  }
+  return n;
+}
+
 }  // namespace x86_64_v3
 
-const QueryKernelTable kX86_64_V3QueryKernels{QueryKernels::kX86_64_V3, &x86_64_v3::distanceImpl,
-                                              &x86_64_v3::cachedDistanceImpl, &x86_64_v3::bruteForceImpl,
-                                              &x86_64_v3::collisionImpl};
+const QueryKernelTable kX86_64_V3QueryKernels{QueryKernels::kX86_64_V3,
+                                              &x86_64_v3::triangleTriangleSquaredDistance,
+                                              &x86_64_v3::trianglesIntersect,
+                                              &x86_64_v3::pointTriangleSquaredDistance,
+                                              &x86_64_v3::pointTriangleSquaredDistances4,
+                                              &x86_64_v3::filterListCandidates,
+                                              &x86_64_v3::scanPointList,
+                                              &x86_64_v3::scanPointListCached,
+                                              &x86_64_v3::nearestTriangleBounded};
 
 }  // namespace cfl::detail
 

@@ -1,5 +1,5 @@
-// The triangle kernels of the query's x86-64-v3 build (see query_kernels_x86_64_v3.cpp for why the target
-// pragma comes after every include, and detail/query_kernels.h for why these have a file of their own).
+// The x86-64-v3 triangle kernels and point query scans (see detail/query_kernels.h for their table, and
+// query_kernels_x86_64_v3.cpp for why the target pragma comes after every include).
 
 #include "detail/query_kernels.h"
 

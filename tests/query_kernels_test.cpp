@@ -305,6 +305,74 @@ TEST(PointTriangleKernels, FourAtOnceGiveTheScalarKernelsBits) {
   }
   EXPECT_EQ(checked, 80000u);
 }
+
+// The mesh search's four-wide list filter (QueryKernelTable::filter_list_candidates) only drops candidates
+// its lower bounds put at or beyond the threshold: every triangle of A strictly closer to B's triangle than
+// the threshold is kept, in order, and the far ones it drops are what makes it worth calling.
+TEST(ListFilterKernel, KeepsEveryCandidateCloserThanTheThreshold) {
+  if (!queryKernelsAvailable(QueryKernels::kX86_64_V3)) GTEST_SKIP() << "no AVX2 on this CPU";
+  const auto filter_list_candidates = detail::kX86_64_V3QueryKernels.filter_list_candidates;
+  ASSERT_NE(filter_list_candidates, nullptr);
+  std::mt19937_64 rng(7);
+  const std::pair<const char*, TriangleMesh> meshes[] = {
+      {"wavy sheet", test::makeWavySheet()},
+      {"thin plate", test::makeThinPlate()},
+      {"soup", test::makeTriangleSoup(300, 3)}};
+  std::size_t kept_total = 0, dropped_total = 0;
+  for (const auto& [name, mesh_a] : meshes) {
+    const MeshModel a = makeMeshModel(mesh_a);
+    TriangleMesh mesh_b = test::makeTorus(0.3, 0.1, 12, 8);
+    const Eigen::Isometry3d X_AB = test::randomPose(rng, 0.8);
+    for (Eigen::Vector3d& v : mesh_b.vertices) v = X_AB * v;
+    const MeshModel b = makeMeshModel(mesh_b);
+    std::vector<int> ids(a.corners.size());
+    for (std::size_t t = 0; t < ids.size(); ++t) ids[t] = int(t);
+    std::vector<int> kept(ids.size());
+    for (std::size_t j = 0; j < b.corners.size(); ++j) {
+      const auto& c = b.corners[j];
+      std::vector<double> distances(ids.size());
+      for (std::size_t t = 0; t < ids.size(); ++t) {
+        Eigen::Vector3d p, q;
+        distances[t] = std::sqrt(triangleTriangleSquaredDistance(a.corners[t].data(), c.data(), &p, &q));
+      }
+      std::vector<double> sorted = distances;
+      std::sort(sorted.begin(), sorted.end());
+      // Thresholds that keep a few, some and most candidates.
+      for (const double fraction : {0.02, 0.2, 0.7}) {
+        const double threshold = sorted[std::size_t(fraction * double(sorted.size()))];
+        const Eigen::Vector3d normal = b.planes[j].head<3>();
+        const detail::ListFilter filter{a.spheres.data(),
+                                        a.planes.data(),
+                                        a.corners.in_leaf_order.data(),
+                                        a.corners.leaf_position.data(),
+                                        c.data(),
+                                        b.spheres[j].head<3>(),
+                                        b.spheres[j][3],
+                                        normal,
+                                        normal.dot(c[0]),
+                                        c[0].cwiseMin(c[1]).cwiseMin(c[2]),
+                                        c[0].cwiseMax(c[1]).cwiseMax(c[2]),
+                                        threshold};
+        std::size_t near = 0;
+        const std::size_t examined = filter_list_candidates(filter, ids.data(), ids.size(), kept.data(), near);
+        ASSERT_EQ(examined % 4, 0u);
+        ASSERT_LE(examined, ids.size());
+        ASSERT_GT(examined + 4, ids.size());
+        ASSERT_TRUE(std::is_sorted(kept.begin(), kept.begin() + std::ptrdiff_t(near))) << name;
+        std::size_t k = 0;
+        for (std::size_t t = 0; t < examined; ++t) {
+          const bool is_kept = k < near && kept[k] == int(t);
+          k += is_kept;
+          ASSERT_TRUE(is_kept || distances[t] >= threshold)
+              << name << ": triangle " << t << " at " << distances[t] << " dropped at threshold " << threshold;
+          (is_kept ? kept_total : dropped_total) += 1;
+        }
+        ASSERT_EQ(k, near) << name;
+      }
+    }
+  }
+  EXPECT_GT(dropped_total, kept_total) << "the filter should drop most far candidates";
+}
 #endif
 
 }  // namespace

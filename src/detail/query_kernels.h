@@ -1,10 +1,9 @@
 #pragma once
-// The query's builds (see cfl/query_kernels.h): what each one defines, and everything the files that compile
-// them include before they include detail/distance_search.inc and detail/triangle_distance_kernels.inc, which
-// include nothing themselves.
-//
-// Each build is its own translation unit: with both copies of the search in one unit, GCC inlined less into
-// Search::runHierarchical, and the baseline copy ran more instructions per query.
+// The query's hot kernels, one table per instruction set (see cfl/query_kernels.h): the triangle kernels,
+// the mesh search's list filter and the point query's scans. The search (distance_search.cpp), the point
+// query and the builder are compiled once, for the library's flags, and call these through the table that
+// activeQueryKernelTable() returns. Each table lives in a file of its own: query_kernels_generic.cpp, and
+// query_kernels_x86_64_v3.cpp with triangle_distance_x86_64_v3.cpp, the only code compiled for x86-64-v3.
 
 #include "cfl/cfl_query.h"
 #include "cfl/error.h"
@@ -56,18 +55,58 @@
 
 namespace cfl::detail {
 
-// One build's entry points, one per public query of cfl_query.h.
+/// What the mesh search's list filter reads (QueryKernelTable::filter_list_candidates): A's triangles by id,
+/// and one triangle of B placed in A's frame with its bounds, at the search's threshold.
+struct ListFilter {
+  const Eigen::Vector4d* spheres_a;                 // MeshModel::spheres
+  const Eigen::Vector4d* planes_a;                  // MeshModel::planes
+  const std::array<Eigen::Vector3d, 3>* corners_a;  // TriangleCorners::in_leaf_order
+  const std::int32_t* leaf_position_a;              // TriangleCorners::leaf_position
+  const Eigen::Vector3d* corners_b;                 // three
+  Eigen::Vector3d center_b;                         // of B's bounding sphere
+  double radius_b;
+  Eigen::Vector3d normal_b;  // zero for a degenerate triangle
+  double offset_b;           // normal_b . corners_b[0]
+  Eigen::Vector3d box_min_b, box_max_b;
+  double threshold;
+};
+
+/// One instruction set's kernels. Every entry returns, bit for bit, what the generic table's returns (no
+/// fused multiply-add anywhere: the library builds with -ffp-contract=off, and the intrinsics spell each
+/// product and sum); the x86-64-v3 ones run fewer instructions. An entry that is null has no faster version
+/// for this instruction set: the caller runs its own scalar code, which is the contract's reference.
 struct QueryKernelTable {
   QueryKernels kernels;
-  DistanceResult (*distance)(const CflModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
-                             const Eigen::Isometry3d& X_WB, const DistanceOptions& options, const CflModel* b_model);
-  DistanceResult (*cached_distance)(const CflModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
-                                    const Eigen::Isometry3d& X_WB, DistanceCache& cache,
-                                    const DistanceOptions& options);
-  DistanceResult (*brute_force)(const MeshModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
-                                const Eigen::Isometry3d& X_WB);
-  bool (*collision)(const MeshModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
-                    const Eigen::Isometry3d& X_WB, std::size_t max_contacts, std::vector<Contact>* contacts);
+  /// cfl::triangleTriangleSquaredDistance.
+  double (*triangle_distance)(const Eigen::Vector3d p[3], const Eigen::Vector3d q[3], Eigen::Vector3d* closest_p,
+                              Eigen::Vector3d* closest_q);
+  /// cfl::trianglesIntersect.
+  bool (*triangles_intersect)(const Eigen::Vector3d p[3], const Eigen::Vector3d q[3], Eigen::Vector3d* point);
+  /// cfl::pointTriangleSquaredDistance.
+  PointTriangle1 point_triangle;
+  /// pointTriangleSquaredDistance from p to four triangles at once: squared[k] and closest[k] are bit for bit
+  /// what point_triangle(p, (*triangles[k])[0], [1], [2], &closest[k]) returns (PendingTriangleTests).
+  PointTriangles4 point_triangles4;
+  /// The first filter of the search's list scan (Search::testTriangleAgainstLists), four candidates of A at
+  /// a time: the bounding spheres' gap, B's plane against A's corners, the gap between the two triangles'
+  /// axis-aligned boxes and, where three or four candidates pass those, the edge axes (the tests of
+  /// Search::mayBeCloser, computed as there, at filter.threshold). Copies the candidates kept among ids[0,
+  /// returned) to kept[near] on, in order, and returns how many it examined, a multiple of 4. It only drops
+  /// candidates that mayBeCloser would drop, which the search still tests, so the search's answer, pairs and
+  /// counters do not depend on it.
+  std::size_t (*filter_list_candidates)(const ListFilter& filter, const int* ids, std::size_t count, int* kept,
+                                        std::size_t& near);
+  /// The point query's scan of a closest feature list (best_squared, best_triangle and closest are the best
+  /// so far on entry, the list's best strictly below it on exit): the same answer, ties included, as the
+  /// scalar scan in point_query.cpp.
+  void (*scan_point_list)(const Eigen::Vector3d& p, const PointListScan& list, const MeshModel& geometry,
+                          double& best_squared, int& best_triangle, Eigen::Vector3d& closest);
+  /// scan_point_list on a list laid out in a PointListCache (blocks laid out as the scan reaches them).
+  void (*scan_point_list_cached)(const Eigen::Vector3d& p, PointListCache& list, const MeshModel& geometry,
+                                 double& best_squared, int& best_triangle, Eigen::Vector3d& closest);
+  /// nearestTriangleCompactBounded (detail/nearest_triangle.h): the same answer.
+  void (*nearest_triangle_bounded)(const MeshModel& model, const Eigen::Vector3d& p, double& best_squared,
+                                   int& best_triangle, Eigen::Vector3d* closest);
 };
 
 extern const QueryKernelTable kGenericQueryKernels;  // query_kernels_generic.cpp
@@ -75,13 +114,15 @@ extern const QueryKernelTable kGenericQueryKernels;  // query_kernels_generic.cp
 extern const QueryKernelTable kX86_64_V3QueryKernels;  // query_kernels_x86_64_v3.cpp
 #endif
 
+/// The table of the build that activeQueryKernels() names (cfl_query.cpp): one atomic load. A query reads it
+/// once and runs in that build to the end.
+const QueryKernelTable& activeQueryKernelTable();
+
 }  // namespace cfl::detail
 
 #if CFL_X86_64_V3_KERNELS
-// The x86-64-v3 build's triangle kernels (triangle_distance_x86_64_v3.cpp), which its search calls: the same
-// contracts as the public functions of cfl/triangle_distance.h. In a translation unit of their own, as the
-// public ones are: in the search's unit they changed how GCC inlined the search itself
-// (Search::runHierarchical), for more instructions per query.
+// The x86-64-v3 kernels (triangle_distance_x86_64_v3.cpp and query_kernels_x86_64_v3.cpp), each with the
+// contract of its entry in QueryKernelTable.
 namespace cfl::detail::x86_64_v3 {
 double pointTriangleSquaredDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                                     const Eigen::Vector3d& c, Eigen::Vector3d* closest);
@@ -90,28 +131,18 @@ double segmentSegmentSquaredDistance(const Eigen::Vector3d& p0, const Eigen::Vec
 double triangleTriangleSquaredDistance(const Eigen::Vector3d p[3], const Eigen::Vector3d q[3],
                                        Eigen::Vector3d* closest_p, Eigen::Vector3d* closest_q);
 bool trianglesIntersect(const Eigen::Vector3d p[3], const Eigen::Vector3d q[3], Eigen::Vector3d* point);
-
-// pointTriangleSquaredDistance from p to four triangles at once (AVX2, four lanes of doubles): squared[k] and
-// closest[k] are bit for bit what pointTriangleSquaredDistance(p, (*triangles[k])[0], [1], [2], &closest[k])
-// returns, every operation rounding as the scalar code's does (no fused multiply-add); a sliver, which the
-// scalar code treats apart, gets that scalar code. The point query runs its exact tests through it, so that
-// a batch of candidates costs about one scalar test.
+// AVX2, four lanes of doubles, every operation rounding as the scalar code's does; a sliver, which the
+// scalar code treats apart, gets that scalar code.
 void pointTriangleSquaredDistances4(const Eigen::Vector3d& p, const std::array<Eigen::Vector3d, 3>* const triangles[4],
                                     double squared[4], Eigen::Vector3d closest[4]);
-
-// The point query's scan of a closest feature list, its bounds four entries at a time and its exact tests
-// through pointTriangleSquaredDistances4: the same contract and answer, ties included, as the generic scan
-// in point_query.cpp (best_squared, best_triangle and closest are the best so far on entry, the list's best
-// strictly below it on exit).
+// Bounds four entries at a time, exact tests through pointTriangleSquaredDistances4.
 void scanPointList(const Eigen::Vector3d& p, const PointListScan& list, const MeshModel& geometry,
                    double& best_squared, int& best_triangle, Eigen::Vector3d& closest);
-// nearestTriangleCompactBounded (detail/nearest_triangle.h) with each leaf's sphere and plane bounds four
-// triangles at a time and the exact tests through pointTriangleSquaredDistances4: the same answer.
 void nearestTriangleBounded(const MeshModel& model, const Eigen::Vector3d& p, double& best_squared, int& best_triangle,
                             Eigen::Vector3d* closest);
-// scanPointList on a list laid out in a PointListCache (blocks laid out as the scan reaches them): the same
-// answer.
 void scanPointListCached(const Eigen::Vector3d& p, PointListCache& list, const MeshModel& geometry,
                          double& best_squared, int& best_triangle, Eigen::Vector3d& closest);
+std::size_t filterListCandidates(const ListFilter& filter, const int* ids, std::size_t count, int* kept,
+                                 std::size_t& near);
 }  // namespace cfl::detail::x86_64_v3
 #endif

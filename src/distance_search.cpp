@@ -1,8 +1,14 @@
-// The search behind computeDistance, computeCollision and bruteForceDistance, in A's frame. cfl_query.cpp
-// includes this file once for each instruction set it builds the query for (see the dispatch there), each
-// time inside its own namespace: no include guard, and no includes of its own, so that every header function
-// it calls stays compiled for the baseline instruction set (see cfl_query.cpp). What it defines:
-// distanceImpl, cachedDistanceImpl, bruteForceImpl and collisionImpl, one per public query.
+// The search behind computeDistance, computeCollision and bruteForceDistance, in A's frame, compiled once for
+// the library's flags. Its hot kernels (the triangle kernels and the list filter) are those of the
+// instruction set that cfl_query.cpp picks: it passes their table to each entry point, and the search calls
+// them through it (detail/query_kernels.h).
+
+#include "detail/distance_search.h"
+
+#include "detail/query_kernels.h"
+
+namespace cfl::detail {
+namespace {
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
@@ -246,9 +252,9 @@ thread_local Scratch tls_scratch;
 // The search state shared by both modes, everything in A's frame.
 class Search {
  public:
-  Search(const CflModel& a, const MeshModel& b, const RigidTransform& X_AB, const DistanceOptions& options,
-         Scratch& scratch)
-      : a_(a), mesh_a_(a.geometry), b_(b), X_AB_(X_AB), options_(options), scratch_(scratch) {
+  Search(const QueryKernelTable& kernels, const CflModel& a, const MeshModel& b, const RigidTransform& X_AB,
+         const DistanceOptions& options, Scratch& scratch)
+      : kernels_(kernels), a_(a), mesh_a_(a.geometry), b_(b), X_AB_(X_AB), options_(options), scratch_(scratch) {
     validateModelShape(mesh_a_, "A's geometry");
     validateModelShape(b_, "B");
     scratch_.beginQuery(mesh_a_.corners.size());
@@ -327,7 +333,7 @@ class Search {
   void testPair(int a, const PreparedTriangle& tb) {
     ++counters_.triangle_pairs;
     Eigen::Vector3d p, q;
-    const double squared = triangleTriangleSquaredDistance(mesh_a_.corners[a].data(), tb.corners, &p, &q);
+    const double squared = kernels_.triangle_distance(mesh_a_.corners[a].data(), tb.corners, &p, &q);
     const double distance = std::sqrt(squared);
     if (near_pairs_ != nullptr && distance < best_ + margin_) near_pairs_->push_back({a, tb.id});
     if (distance < best_ || (best_a_ < 0 && best_ == kInfinity)) {
@@ -413,7 +419,7 @@ class Search {
   }
 
   // The signed offset of p from the plane normal . x = offset, summed in this order: the x86-64-v3 filter
-  // (filterCandidatesByFour) repeats it four candidates at a time and must get the same bits.
+  // (filter_list_candidates) repeats it four candidates at a time and must get the same bits.
   static double planeOffset(const Eigen::Vector3d& normal, double offset, const Eigen::Vector3d& p) {
     return normal[0] * p[0] + normal[1] * p[1] + normal[2] * p[2] - offset;
   }
@@ -449,7 +455,7 @@ class Search {
     const Eigen::Vector3d edges_b[2] = {tb.corners[kNext[corner_b]] - corner, tb.corners[kPrevious[corner_b]] - corner};
     const Eigen::Vector3d offset = corner - origin;
     const double threshold_squared = threshold * threshold;
-    // Products and sums spelled out, in the order filterCandidatesByFour repeats for the same bits.
+    // Products and sums spelled out, in the order the x86-64-v3 filter_list_candidates repeats for the same bits.
     for (const Eigen::Vector3d& edge_b : edges_b) {
       for (const Eigen::Vector3d& edge_a : edges_a) {
         const Eigen::Vector3d axis(edge_a[1] * edge_b[2] - edge_a[2] * edge_b[1],
@@ -708,9 +714,9 @@ class Search {
     int* ids = candidates.data();
     std::size_t near = 0;
     std::size_t n = 0;
-#if defined(CFL_SEARCH_AVX2)
-    n = filterCandidatesByFour(merged, count, tb, threshold, ids, near);
-#endif
+    if (kernels_.filter_list_candidates != nullptr) {
+      n = kernels_.filter_list_candidates(listFilter(tb, threshold), merged, count, ids, near);
+    }
     // Bounding spheres, squared: the center gap against the reach.
     for (; n < count; ++n) {
       const int t = merged[n];
@@ -768,181 +774,12 @@ class Search {
     return taken;
   }
 
-#if defined(CFL_SEARCH_AVX2)
-  // testTriangleAgainstLists' first filter in the x86-64-v3 build, four candidates of A at a time: the
-  // bounding spheres' gap, B's plane against A's corners and the gap between the two triangles' axis-aligned
-  // boxes, the first tests of mayBeCloser, computed as there, at the search's threshold when the scan began.
-  // On a flat plate the lists are long and the spheres pass most of their entries, and B's plane and the
-  // boxes, one candidate at a time behind them, cost more than the spheres. Those it keeps go on to testPairIfClose,
-  // which repeats the tests at the threshold by then: it only drops candidates that the scalar filter would drop, so
-  // the answer, the pairs tested and the counters are the generic build's bit for bit. Copies the candidates kept among
-  // ids[0, returned) to kept[near] on (in order), and returns how many it examined, a multiple of 4.
-  std::size_t filterCandidatesByFour(const int* ids, std::size_t count, const PreparedTriangle& tb,
-                                     double threshold, int* kept, std::size_t& near) const {
-    const Eigen::Vector4d* spheres = mesh_a_.spheres.data();
-    const TriangleCorners::Corners* corners = mesh_a_.corners.in_leaf_order.data();
-    const std::int32_t* leaf_position = mesh_a_.corners.leaf_position.data();
-    const __m256d limit = _mm256_set1_pd(threshold);
-    const __m256d radius_b = _mm256_set1_pd(tb.radius);
-    const __m256d center[3] = {_mm256_set1_pd(tb.center[0]), _mm256_set1_pd(tb.center[1]),
-                               _mm256_set1_pd(tb.center[2])};
-    const __m256d normal[3] = {_mm256_set1_pd(tb.normal[0]), _mm256_set1_pd(tb.normal[1]),
-                               _mm256_set1_pd(tb.normal[2])};
-    const __m256d offset = _mm256_set1_pd(tb.offset);
-    const __m256d box_min_b[3] = {_mm256_set1_pd(tb.box_min[0]), _mm256_set1_pd(tb.box_min[1]),
-                                  _mm256_set1_pd(tb.box_min[2])};
-    const __m256d box_max_b[3] = {_mm256_set1_pd(tb.box_max[0]), _mm256_set1_pd(tb.box_max[1]),
-                                  _mm256_set1_pd(tb.box_max[2])};
-    const __m256d sign = _mm256_set1_pd(-0.0);
-    const Eigen::Vector4d* planes = mesh_a_.planes.data();
-    __m256d corner_b[9];
-    for (int k = 0; k < 9; ++k) corner_b[k] = _mm256_set1_pd(tb.corners[k / 3][k % 3]);
-    // Rows of four doubles, one per candidate, into columns, one per value.
-    auto transpose = [](const __m256d r[4], __m256d* column) {
-      const __m256d t0 = _mm256_unpacklo_pd(r[0], r[1]), t1 = _mm256_unpackhi_pd(r[0], r[1]);
-      const __m256d t2 = _mm256_unpacklo_pd(r[2], r[3]), t3 = _mm256_unpackhi_pd(r[2], r[3]);
-      column[0] = _mm256_permute2f128_pd(t0, t2, 0x20);
-      column[1] = _mm256_permute2f128_pd(t1, t3, 0x20);
-      column[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
-      column[3] = _mm256_permute2f128_pd(t1, t3, 0x31);
-    };
-    std::size_t n = 0;
-    for (; n + 4 <= count; n += 4) {
-      const int* t = ids + n;
-      // Loads and shuffles: on the AMD machine measured, gathers took longer than the scalar filter.
-      __m256d rows[4], sphere[4];
-      for (int k = 0; k < 4; ++k) rows[k] = _mm256_loadu_pd(spheres[t[k]].data());
-      transpose(rows, sphere);
-      // Spheres: |center gap|^2 < (threshold + r_a + r_b)^2, as in the scalar loop.
-      __m256d gap_squared = _mm256_setzero_pd();
-      for (int k = 0; k < 3; ++k) {
-        const __m256d d = _mm256_sub_pd(center[k], sphere[k]);
-        gap_squared = _mm256_add_pd(gap_squared, _mm256_mul_pd(d, d));
-      }
-      const __m256d reach = _mm256_add_pd(_mm256_add_pd(limit, sphere[3]), radius_b);
-      __m256d pass = _mm256_cmp_pd(gap_squared, _mm256_mul_pd(reach, reach), _CMP_LT_OQ);
-      // A's corners, nine values per candidate: two rows of four and the last one.
-      const double* c[4];
-      for (int k = 0; k < 4; ++k) c[k] = corners[std::size_t(leaf_position[t[k]])][0].data();
-      __m256d p[9];
-      for (int k = 0; k < 4; ++k) rows[k] = _mm256_loadu_pd(c[k]);
-      transpose(rows, p);
-      for (int k = 0; k < 4; ++k) rows[k] = _mm256_loadu_pd(c[k] + 4);
-      transpose(rows, p + 4);
-      p[8] = _mm256_set_pd(c[3][8], c[2][8], c[1][8], c[0][8]);
-      // B's plane: the corners' signed offsets all at least the threshold on one side.
-      __m256d low = _mm256_set1_pd(kInfinity), high = _mm256_set1_pd(-kInfinity);
-      __m256d side[3];  // A's corners against B's plane, as planeOffset
-      for (int k = 0; k < 3; ++k) {
-        side[k] = planeOffsets(normal, offset, p + 3 * k);
-        low = _mm256_min_pd(low, side[k]);
-        high = _mm256_max_pd(high, side[k]);
-      }
-      const __m256d plane_gap = _mm256_max_pd(low, _mm256_xor_pd(high, sign));
-      pass = _mm256_and_pd(pass, _mm256_cmp_pd(plane_gap, limit, _CMP_LT_OQ));
-      // The boxes: apart by the threshold along some coordinate axis.
-      __m256d box_gap = _mm256_set1_pd(-kInfinity);
-      for (int k = 0; k < 3; ++k) {
-        const __m256d box_min = _mm256_min_pd(_mm256_min_pd(p[k], p[k + 3]), p[k + 6]);
-        const __m256d box_max = _mm256_max_pd(_mm256_max_pd(p[k], p[k + 3]), p[k + 6]);
-        box_gap = _mm256_max_pd(box_gap, _mm256_max_pd(_mm256_sub_pd(box_min, box_max_b[k]),
-                                                       _mm256_sub_pd(box_min_b[k], box_max)));
-      }
-      pass = _mm256_and_pd(pass, _mm256_cmp_pd(box_gap, limit, _CMP_LT_OQ));
-      // Past the boxes, nearly every candidate on a sliver's list (huge fanned triangles whose boxes and
-      // planes cover the scan) goes on to the edge axes; they too are cheaper four at a time. One or two
-      // survivors are left to the scalar filter, whose cheaper tests dismiss some before the edge axes: on
-      // compact meshes, where few candidates survive the boxes, the four-wide test costs more than it saves.
-      if (__builtin_popcount(unsigned(_mm256_movemask_pd(pass))) >= 3) {
-        for (int k = 0; k < 4; ++k) rows[k] = _mm256_loadu_pd(planes[t[k]].data());
-        __m256d plane_a[4];
-        transpose(rows, plane_a);
-        __m256d others[3];  // B's corners against A's plane
-        for (int k = 0; k < 3; ++k) others[k] = planeOffsets(plane_a, plane_a[3], corner_b + 3 * k);
-        pass = _mm256_andnot_pd(edgeAxesSeparateByFour(p, side, corner_b, others, limit), pass);
-      }
-      const int mask = _mm256_movemask_pd(pass);
-      for (int k = 0; k < 4; ++k) {
-        kept[near] = t[k];
-        near += (mask >> k) & 1;
-      }
-    }
-    return n;
+  // testTriangleAgainstLists' first filter's inputs (QueryKernelTable::filter_list_candidates).
+  ListFilter listFilter(const PreparedTriangle& tb, double threshold) const {
+    return {mesh_a_.spheres.data(), mesh_a_.planes.data(), mesh_a_.corners.in_leaf_order.data(),
+            mesh_a_.corners.leaf_position.data(), tb.corners, tb.center, tb.radius, tb.normal, tb.offset,
+            tb.box_min, tb.box_max, threshold};
   }
-
-  // planeOffset for four points, coordinates point[0..2], against four planes or one.
-  static __m256d planeOffsets(const __m256d normal[3], __m256d offset, const __m256d point[3]) {
-    return _mm256_sub_pd(
-        _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(normal[0], point[0]), _mm256_mul_pd(normal[1], point[1])),
-                      _mm256_mul_pd(normal[2], point[2])),
-        offset);
-  }
-  static __m256d dot3(const __m256d u[3], const __m256d v[3]) {
-    return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(u[0], v[0]), _mm256_mul_pd(u[1], v[1])),
-                         _mm256_mul_pd(u[2], v[2]));
-  }
-  // The corners of four triangles (corner[3 i + j]: coordinate j of corner i), rotated per lane so that the
-  // corner nearestToPlane picks by its plane offsets comes first: origin, next, previous.
-  static void rotateToNearest(const __m256d corner[9], const __m256d offsets[3], __m256d origin[3], __m256d next[3],
-                              __m256d previous[3]) {
-    const __m256d sign = _mm256_set1_pd(-0.0);
-    const __m256d a0 = _mm256_andnot_pd(sign, offsets[0]), a1 = _mm256_andnot_pd(sign, offsets[1]),
-                  a2 = _mm256_andnot_pd(sign, offsets[2]);
-    // nearestToPlane: a0 <= a1 ? (a0 <= a2 ? 0 : 2) : (a1 <= a2 ? 1 : 2).
-    const __m256d first_le_second = _mm256_cmp_pd(a0, a1, _CMP_LE_OQ);
-    const __m256d is0 = _mm256_and_pd(first_le_second, _mm256_cmp_pd(a0, a2, _CMP_LE_OQ));
-    const __m256d is1 = _mm256_andnot_pd(first_le_second, _mm256_cmp_pd(a1, a2, _CMP_LE_OQ));
-    const __m256d is2 = _mm256_andnot_pd(_mm256_or_pd(is0, is1), _mm256_castsi256_pd(_mm256_set1_epi64x(-1)));
-    for (int j = 0; j < 3; ++j) {
-      const __m256d c0 = corner[j], c1 = corner[3 + j], c2 = corner[6 + j];
-      origin[j] = _mm256_blendv_pd(_mm256_blendv_pd(c0, c1, is1), c2, is2);
-      next[j] = _mm256_blendv_pd(_mm256_blendv_pd(c1, c2, is1), c0, is2);
-      previous[j] = _mm256_blendv_pd(_mm256_blendv_pd(c2, c0, is1), c1, is2);
-    }
-  }
-  // edgeAxesSeparate four pairs at a time, the same operations in the same order (std::min(x, y) is
-  // _mm256_min_pd(y, x), NaNs included), at `limit`: all lanes set where the axes separate the pair.
-  // `corner_a`: A's four triangles' corners, `side`: their offsets from B's plane; `corner_b`: B's corners
-  // (the same in every lane), `others`: their offsets from each of A's planes.
-  static __m256d edgeAxesSeparateByFour(const __m256d corner_a[9], const __m256d side[3], const __m256d corner_b[9],
-                                        const __m256d others[3], __m256d limit) {
-    __m256d origin_a[3], next_a[3], previous_a[3], origin_b[3], next_b[3], previous_b[3];
-    rotateToNearest(corner_a, side, origin_a, next_a, previous_a);
-    rotateToNearest(corner_b, others, origin_b, next_b, previous_b);
-    __m256d edges_a[2][3], edges_b[2][3], offset[3];
-    for (int j = 0; j < 3; ++j) {
-      edges_a[0][j] = _mm256_sub_pd(next_a[j], origin_a[j]);
-      edges_a[1][j] = _mm256_sub_pd(previous_a[j], origin_a[j]);
-      edges_b[0][j] = _mm256_sub_pd(next_b[j], origin_b[j]);
-      edges_b[1][j] = _mm256_sub_pd(previous_b[j], origin_b[j]);
-      offset[j] = _mm256_sub_pd(origin_b[j], origin_a[j]);
-    }
-    const __m256d zero = _mm256_setzero_pd();
-    const __m256d limit_squared = _mm256_mul_pd(limit, limit);
-    __m256d separated = zero;
-    for (const auto& edge_b : edges_b) {
-      for (const auto& edge_a : edges_a) {
-        const __m256d axis[3] = {
-            _mm256_sub_pd(_mm256_mul_pd(edge_a[1], edge_b[2]), _mm256_mul_pd(edge_a[2], edge_b[1])),
-            _mm256_sub_pd(_mm256_mul_pd(edge_a[2], edge_b[0]), _mm256_mul_pd(edge_a[0], edge_b[2])),
-            _mm256_sub_pd(_mm256_mul_pd(edge_a[0], edge_b[1]), _mm256_mul_pd(edge_a[1], edge_b[0]))};
-        const __m256d a1 = dot3(edges_a[0], axis), a2 = dot3(edges_a[1], axis);
-        const __m256d b0 = dot3(offset, axis);
-        const __m256d b1 = _mm256_add_pd(b0, dot3(edges_b[0], axis)), b2 = _mm256_add_pd(b0, dot3(edges_b[1], axis));
-        const __m256d low_a = _mm256_min_pd(_mm256_min_pd(a2, a1), zero);
-        const __m256d high_a = _mm256_max_pd(_mm256_max_pd(a2, a1), zero);
-        const __m256d low_b = _mm256_min_pd(_mm256_min_pd(b2, b1), b0);
-        const __m256d high_b = _mm256_max_pd(_mm256_max_pd(b2, b1), b0);
-        const __m256d gap = _mm256_max_pd(_mm256_sub_pd(low_a, high_b), _mm256_sub_pd(low_b, high_a));
-        const __m256d apart = _mm256_and_pd(
-            _mm256_cmp_pd(gap, zero, _CMP_GT_OQ),
-            _mm256_cmp_pd(_mm256_mul_pd(gap, gap), _mm256_mul_pd(limit_squared, dot3(axis, axis)), _CMP_GE_OQ));
-        separated = _mm256_or_pd(separated, apart);
-      }
-    }
-    return separated;
-  }
-#endif
 
   // Triangle tb of B against the subtree of A's Bvh below node `root`: exact wherever the triangle is, for
   // the parts outside the grid.
@@ -1643,7 +1480,7 @@ class Search {
           // Only leaves the triangle really touches (separating axis test). The slack keeps a triangle lying
           // exactly on a cell face in both cells whatever the rounding.
           Eigen::Vector3d closest;
-          pointTriangleSquaredDistance(cell_center, tb[0], tb[1], tb[2], &closest);
+          kernels_.point_triangle(cell_center, tb[0], tb[1], tb[2], &closest);
           if (detail::cubeTriangleLowerBound(cell_center, half, tb[0], tb[1], tb[2], closest) > 1e-9 * cell.size) {
             return true;
           }
@@ -1717,6 +1554,7 @@ class Search {
   }
 
  private:
+  const QueryKernelTable& kernels_;
   const CflModel& a_;
   const MeshModel& mesh_a_;
   const MeshModel& b_;
@@ -1755,11 +1593,14 @@ void validateOptions(const DistanceOptions& options) {
   }
 }
 
-DistanceResult distanceImpl(const CflModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
-                            const Eigen::Isometry3d& X_WB, const DistanceOptions& options, const CflModel* b_model) {
+}  // namespace
+
+DistanceResult distanceImpl(const QueryKernelTable& kernels, const CflModel& a, const Eigen::Isometry3d& X_WA,
+                            const MeshModel& b, const Eigen::Isometry3d& X_WB, const DistanceOptions& options,
+                            const CflModel* b_model) {
   validateOptions(options);
   const RigidTransform X_AB = relativePose(X_WA, X_WB);
-  Search search(a, b, X_AB, options, tls_scratch);
+  Search search(kernels, a, b, X_AB, options, tls_scratch);
   if (options.mode == QueryMode::kPaper) {
     RigidTransform X_BA;
     if (b_model) X_BA = RigidTransform{X_AB.rotation.transpose(), -(X_AB.rotation.transpose() * X_AB.translation)};
@@ -1771,6 +1612,8 @@ DistanceResult distanceImpl(const CflModel& a, const Eigen::Isometry3d& X_WA, co
 }
 
 
+
+namespace {
 
 // Bound on how far any point of B (inside the box `bounds_b`, B's frame) moves in A's frame between the
 // relative poses (R0, p0) and (R1, p1): the box's center moves by |(R1 - R0) c + p1 - p0|, and any other
@@ -1799,14 +1642,17 @@ double motionBound(const Aabb& bounds_b, const Eigen::Matrix3d& R0, const Eigen:
 constexpr double kMarginCost = 1.5;
 constexpr double kLargestCertifiedStep = 0.05;
 
+}  // namespace
 
-DistanceResult cachedDistanceImpl(const CflModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
-                                  const Eigen::Isometry3d& X_WB, DistanceCache& cache, const DistanceOptions& options) {
+
+DistanceResult cachedDistanceImpl(const QueryKernelTable& kernels, const CflModel& a, const Eigen::Isometry3d& X_WA,
+                                  const MeshModel& b, const Eigen::Isometry3d& X_WB, DistanceCache& cache,
+                                  const DistanceOptions& options) {
   validateOptions(options);
   if (options.mode != QueryMode::kHierarchical || options.rel_err != 0 || options.abs_err != 0 ||
       options.upper_bound != kInfinity) {
     cache.reset();
-    return distanceImpl(a, X_WA, b, X_WB, options, nullptr);
+    return distanceImpl(kernels, a, X_WA, b, X_WB, options, nullptr);
   }
   const RigidTransform X_AB = relativePose(X_WA, X_WB);
   if (cache.model_a != &a || cache.model_b != &b || cache.triangle_counts[0] != a.geometry.corners.size() ||
@@ -1831,7 +1677,7 @@ DistanceResult cachedDistanceImpl(const CflModel& a, const Eigen::Isometry3d& X_
     search_options.hint_triangle_a = cache.previous_triangle_a;
     search_options.hint_triangle_b = cache.previous_triangle_b;
   }
-  Search search(a, b, X_AB, search_options, tls_scratch);
+  Search search(kernels, a, b, X_AB, search_options, tls_scratch);
   // The answer's pair is the next search's first upper bound.
   auto answer = [&]() {
     DistanceResult r = search.result(X_WA);
@@ -1882,8 +1728,8 @@ DistanceResult cachedDistanceImpl(const CflModel& a, const Eigen::Isometry3d& X_
   return answer();
 }
 
-DistanceResult bruteForceImpl(const MeshModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
-                              const Eigen::Isometry3d& X_WB) {
+DistanceResult bruteForceImpl(const QueryKernelTable& kernels, const MeshModel& a, const Eigen::Isometry3d& X_WA,
+                              const MeshModel& b, const Eigen::Isometry3d& X_WB) {
   validateModelShape(a, "A");
   validateModelShape(b, "B");
   const RigidTransform X_AB = relativePose(X_WA, X_WB);
@@ -1905,7 +1751,7 @@ DistanceResult bruteForceImpl(const MeshModel& a, const Eigen::Isometry3d& X_WA,
       if ((center_b - sphere_a.head<3>()).norm() > reach + slack) continue;
       Eigen::Vector3d p, q;
       ++r.counters.triangle_pairs;
-      const double squared = triangleTriangleSquaredDistance(a.corners[i].data(), tb, &p, &q);
+      const double squared = kernels.triangle_distance(a.corners[i].data(), tb, &p, &q);
       if (squared < best) {
         best = squared;
         best_distance = std::sqrt(squared);
@@ -1922,8 +1768,9 @@ DistanceResult bruteForceImpl(const MeshModel& a, const Eigen::Isometry3d& X_WA,
   return r;
 }
 
-bool collisionImpl(const MeshModel& a, const Eigen::Isometry3d& X_WA, const MeshModel& b,
-                   const Eigen::Isometry3d& X_WB, std::size_t max_contacts, std::vector<Contact>* contacts) {
+bool collisionImpl(const QueryKernelTable& kernels, const MeshModel& a, const Eigen::Isometry3d& X_WA,
+                   const MeshModel& b, const Eigen::Isometry3d& X_WB, std::size_t max_contacts,
+                   std::vector<Contact>* contacts) {
   validateModelShape(a, "A");
   validateModelShape(b, "B");
   const RigidTransform X_AB = relativePose(X_WA, X_WB);
@@ -1948,7 +1795,7 @@ bool collisionImpl(const MeshModel& a, const Eigen::Isometry3d& X_WA, const Mesh
           Eigen::Vector3d tb[3];
           for (int n = 0; n < 3; ++n) tb[n] = X_AB.apply(b.corners[tb_id][n]);
           Eigen::Vector3d point;
-          if (trianglesIntersect(a.corners[ta].data(), tb, &point)) {
+          if (kernels.triangles_intersect(a.corners[ta].data(), tb, &point)) {
             ++found;
             if (contacts) contacts->push_back({ta, tb_id, X_WA * point});
           }
@@ -1968,3 +1815,4 @@ bool collisionImpl(const MeshModel& a, const Eigen::Isometry3d& X_WA, const Mesh
   return found > 0;
 }
 
+}  // namespace cfl::detail

@@ -1314,6 +1314,30 @@ TEST(ComputeDistance, LevelMeshesOverAGroundPlaneMatchBruteForce) {
   EXPECT_GE(poses, 270);
 }
 
+// A long, thin, twisted plate, a turbine blade's shape: far apart, the small node pairs of two such blades
+// are tested behind one bound shared by all their triangle pairs (Search::testFarBlock), and many of those
+// pairs lie within a hair of the closest, so a shared bound that overshot would prune it.
+TEST(ComputeDistance, FarApartBladesMatchBruteForce) {
+  TriangleMesh blade = test::makeThinPlate(1.0, 0.04, 16);
+  for (Eigen::Vector3d& v : blade.vertices) {
+    const double along = 6 * v.x(), twist = 0.3 * v.x();
+    v = Eigen::Vector3d(along, std::cos(twist) * v.y() - std::sin(twist) * v.z(),
+                        std::sin(twist) * v.y() + std::cos(twist) * v.z());
+  }
+  const auto a = makeShape("blade", std::move(blade), 0);
+  test::Rng rng(1618);
+  Failures failures;
+  for (double fraction : {0.02, 0.1, 0.3, 0.5, 1.0, 3.0}) {
+    for (int n = 0; n < 12; ++n) {
+      const Pose pose = makePose(*a, *a, fraction, rng);
+      const DistanceResult truth = bruteForceDistance(a->model, pose.X_WA, a->model, pose.X_WB);
+      checkResult(computeDistance(a->cfl, pose.X_WA, a->model, pose.X_WB), truth, *a, *a, pose, "far blades",
+                  failures);
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+}
+
 // B's Bvh leaves that reach past A's grid go on whole as node pairs with A's Bvh (Search::expand), their
 // triangles inside the grid included: flat meshes, slivers among them, at the poses where B straddles the
 // grid's boundary must match brute force.

@@ -1034,7 +1034,10 @@ class Search {
           (!a_.regions.hasList(cell.leaf) && radius < cell.size)) {
         offer(std::max(lower_bound, nodePairLowerBound(0, place(n, center), pruneThreshold())), n, 0);
       } else if (lower_bound > 0 && lower_bound < pruneThreshold() && radius < cell.size &&
+                 a_.regions.leafListLength(cell.leaf) <= std::uint32_t(kShortListTriangles) &&
                  pairWithShortLists(n, center, radius, lower_bound, push)) {
+        // (The leaf at the node's center is one of those pairWithShortLists reads: a long list there
+        // rules the pairing out before the walk over the leaves its box meets.)
         // Paired with the few triangles of A listed around it (see pairWithShortLists), where the field is
         // loosest: a node smaller than the coarse leaf it lies in. Not where the node may overlap A, whose
         // dive to the first contact the grid's bounds lead faster (ground_bunny against itself at contact

@@ -415,7 +415,10 @@ class Search {
                  s1 = planeOffset(normal_a, plane[3], tb.corners[1]),
                  s2 = planeOffset(normal_a, plane[3], tb.corners[2]);
     if (std::max(std::min({s0, s1, s2}), -std::max({s0, s1, s2})) >= threshold) return false;
-    return !edgeAxesSeparate(c, tb, nearestToPlane(t0, t1, t2), nearestToPlane(s0, s1, s2), threshold);
+    // The edge axes (QueryKernelTable::edge_axes_separate): only the few candidates that pass every other
+    // test get there.
+    return !kernels_.edge_axes_separate(c.data(), tb.corners, nearestToPlane(t0, t1, t2), nearestToPlane(s0, s1, s2),
+                                        threshold);
   }
 
   // The signed offset of p from the plane normal . x = offset, summed in this order: the x86-64-v3 filter
@@ -431,45 +434,6 @@ class Search {
   static int nearestToPlane(double x0, double x1, double x2) {
     const double a0 = std::abs(x0), a1 = std::abs(x1), a2 = std::abs(x2);
     return a0 <= a1 ? (a0 <= a2 ? 0 : 2) : (a1 <= a2 ? 1 : 2);
-  }
-
-  // Whether the projections of triangle c of A and `tb` on one of four axes e_a x e_b (edges of each) are at
-  // least `threshold` apart: a lower bound on their distance, tight where the closest features are two
-  // edges. The pairs that pass the plane tests are mostly such near-parallel patches, and the exact kernel
-  // found most of them no closer than the threshold. The four axes from the two edges at each triangle's
-  // corner nearest the other's plane, taken here, rule out most of what all nine edge-edge axes do, for 4/9
-  // of the cost; the one axis of the two edges nearest each other's plane, far fewer.
-  // All six corners are projected, though an edge's ends share one value in exact arithmetic: between
-  // nearly parallel edges the rounded cross product is far from orthogonal to them (a sliver test failed
-  // with the shortcut), and any axis bounds the distance only if every corner is projected on it.
-  // Out of line, like testPair: only the few candidates that pass every other test get here, and inlined
-  // its registers were saved and restored on every call of mayBeCloser.
-  CFL_NOINLINE
-  static bool edgeAxesSeparate(const std::array<Eigen::Vector3d, 3>& c, const PreparedTriangle& tb, int corner_a,
-                               int corner_b, double threshold) {
-    static constexpr int kNext[3] = {1, 2, 0}, kPrevious[3] = {2, 0, 1};
-    // Everything relative to A's corner: its edges, B's corner, and B's edges out of that corner.
-    const Eigen::Vector3d& origin = c[corner_a];
-    const Eigen::Vector3d edges_a[2] = {c[kNext[corner_a]] - origin, c[kPrevious[corner_a]] - origin};
-    const Eigen::Vector3d& corner = tb.corners[corner_b];
-    const Eigen::Vector3d edges_b[2] = {tb.corners[kNext[corner_b]] - corner, tb.corners[kPrevious[corner_b]] - corner};
-    const Eigen::Vector3d offset = corner - origin;
-    const double threshold_squared = threshold * threshold;
-    // Products and sums spelled out, in the order the x86-64-v3 filter_list_candidates repeats for the same bits.
-    for (const Eigen::Vector3d& edge_b : edges_b) {
-      for (const Eigen::Vector3d& edge_a : edges_a) {
-        const Eigen::Vector3d axis(edge_a[1] * edge_b[2] - edge_a[2] * edge_b[1],
-                                   edge_a[2] * edge_b[0] - edge_a[0] * edge_b[2],
-                                   edge_a[0] * edge_b[1] - edge_a[1] * edge_b[0]);
-        const double a1 = dot3(edges_a[0], axis), a2 = dot3(edges_a[1], axis);  // A's corner projects at 0
-        const double b0 = dot3(offset, axis), b1 = b0 + dot3(edges_b[0], axis), b2 = b0 + dot3(edges_b[1], axis);
-        const double low_a = std::min(0.0, std::min(a1, a2)), high_a = std::max(0.0, std::max(a1, a2));
-        const double low_b = std::min(b0, std::min(b1, b2)), high_b = std::max(b0, std::max(b1, b2));
-        const double gap = std::max(low_b - high_a, low_a - high_b);
-        if (gap > 0 && gap * gap >= threshold_squared * dot3(axis, axis)) return true;
-      }
-    }
-    return false;
   }
 
   // `spheres_filtered`: the pair passed the spheres' gap at an earlier threshold (see mayBeCloserBeyondSpheres).
@@ -1646,7 +1610,6 @@ DistanceResult distanceImpl(const QueryKernelTable& kernels, const CflModel& a, 
 }
 
 
-
 namespace {
 
 // Bound on how far any point of B (inside the box `bounds_b`, B's frame) moves in A's frame between the
@@ -1677,7 +1640,6 @@ constexpr double kMarginCost = 1.5;
 constexpr double kLargestCertifiedStep = 0.05;
 
 }  // namespace
-
 
 DistanceResult cachedDistanceImpl(const QueryKernelTable& kernels, const CflModel& a, const Eigen::Isometry3d& X_WA,
                                   const MeshModel& b, const Eigen::Isometry3d& X_WB, DistanceCache& cache,

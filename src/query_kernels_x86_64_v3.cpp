@@ -55,8 +55,8 @@ CFL_ALWAYS_INLINE inline void rotateToNearest(const __m256d corner[9], const __m
     previous[j] = _mm256_blendv_pd(_mm256_blendv_pd(c2, c0, is1), c1, is2);
   }
 }
-// The search's edgeAxesSeparate four pairs at a time, the same operations in the same order (std::min(x, y)
-// is _mm256_min_pd(y, x), NaNs included), at `limit`: all lanes set where the axes separate the pair.
+// edgeAxesSeparate (detail/edge_axes_kernel.inc) four pairs at a time, the same operations in the same order
+// (std::min(x, y) is _mm256_min_pd(y, x), NaNs included), at `limit`: all lanes set where the axes separate the pair.
 // `corner_a`: A's four triangles' corners, `side`: their offsets from B's plane; `corner_b`: B's corners
 // (the same in every lane), `others`: their offsets from each of A's planes.
 __m256d edgeAxesSeparateByFour(const __m256d corner_a[9], const __m256d side[3], const __m256d corner_b[9],
@@ -197,6 +197,8 @@ std::size_t filterListCandidates(const ListFilter& filter, const int* ids, std::
   return n;
 }
 
+#include "detail/edge_axes_kernel.inc"
+
 }  // namespace x86_64_v3
 
 const QueryKernelTable kX86_64_V3QueryKernels{QueryKernels::kX86_64_V3,
@@ -205,6 +207,7 @@ const QueryKernelTable kX86_64_V3QueryKernels{QueryKernels::kX86_64_V3,
                                               &x86_64_v3::pointTriangleSquaredDistance,
                                               &x86_64_v3::pointTriangleSquaredDistances4,
                                               &x86_64_v3::filterListCandidates,
+                                              &x86_64_v3::edgeAxesSeparate,
                                               &x86_64_v3::scanPointList,
                                               &x86_64_v3::scanPointListCached,
                                               &x86_64_v3::nearestTriangleBounded};

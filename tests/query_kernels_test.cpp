@@ -375,5 +375,52 @@ TEST(ListFilterKernel, KeepsEveryCandidateCloserThanTheThreshold) {
 }
 #endif
 
+
+// The search's edge-axes filter only separates pairs at least `threshold` apart (a lower bound, checked
+// against the exact distance), and every table answers it the same way. Nearly parallel slivers and
+// coplanar patches, where the rounded cross products stray most, are among the pairs.
+TEST(EdgeAxesKernel, SeparatesOnlyPairsAtLeastTheThresholdApartInEveryTable) {
+  std::vector<const detail::QueryKernelTable*> tables = {&detail::kGenericQueryKernels};
+#if CFL_X86_64_V3_KERNELS
+  if (queryKernelsAvailable(QueryKernels::kX86_64_V3)) tables.push_back(&detail::kX86_64_V3QueryKernels);
+#endif
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> unit(-1, 1);
+  const auto point = [&] { return Eigen::Vector3d(unit(rng), unit(rng), unit(rng)); };
+  int separated = 0, checked = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    Eigen::Vector3d a[3] = {point(), point(), point()};
+    Eigen::Vector3d b[3];
+    switch (trial % 3) {
+      case 0:  // any two triangles
+        for (Eigen::Vector3d& v : b) v = point() + Eigen::Vector3d(unit(rng), 0, 0);
+        break;
+      case 1:  // a sliver nearly parallel to an edge of a, a little apart
+        b[0] = a[0] + 0.1 * point();
+        b[1] = a[1] + 0.1 * point();
+        b[2] = b[0] + 1e-7 * point();
+        break;
+      default:  // nearly coplanar with a, shifted in its plane
+        for (int k = 0; k < 3; ++k) b[k] = a[k] + (a[1] - a[0]) * (0.5 + unit(rng)) + 1e-9 * point();
+        break;
+    }
+    Eigen::Vector3d p, q;
+    const double distance = std::sqrt(triangleTriangleSquaredDistance(a, b, &p, &q));
+    for (const double threshold : {0.5 * distance, distance, 1.5 * distance + 1e-12}) {
+      const int corner_a = int(rng() % 3), corner_b = int(rng() % 3);
+      const bool generic = tables[0]->edge_axes_separate(a, b, corner_a, corner_b, threshold);
+      for (const detail::QueryKernelTable* table : tables) {
+        ASSERT_EQ(table->edge_axes_separate(a, b, corner_a, corner_b, threshold), generic)
+            << queryKernelsName(table->kernels) << " differs from generic at trial " << trial;
+      }
+      ++checked;
+      separated += generic;
+      ASSERT_TRUE(!generic || distance >= threshold)
+          << "trial " << trial << ": separated at " << threshold << " a pair " << distance << " apart";
+    }
+  }
+  EXPECT_GT(separated, checked / 20) << "the edge axes should separate some pairs";
+}
+
 }  // namespace
 }  // namespace cfl

@@ -96,6 +96,12 @@ struct QueryKernelTable {
   /// counters do not depend on it.
   std::size_t (*filter_list_candidates)(const ListFilter& filter, const int* ids, std::size_t count, int* kept,
                                         std::size_t& near);
+  /// Whether the projections of triangles a and b (A's frame) on one of the four axes e_a x e_b, from the
+  /// two edges at a's corner_a and at b's corner_b, are at least `threshold` apart: the last bound of
+  /// Search::mayBeCloser before the exact distance (detail/edge_axes_kernel.inc). Never null; the same answer
+  /// in every table.
+  bool (*edge_axes_separate)(const Eigen::Vector3d a[3], const Eigen::Vector3d b[3], int corner_a, int corner_b,
+                             double threshold);
   /// The point query's scan of a closest feature list (best_squared, best_triangle and closest are the best
   /// so far on entry, the list's best strictly below it on exit): the same answer, ties included, as the
   /// scalar scan in point_query.cpp.
@@ -144,5 +150,7 @@ void scanPointListCached(const Eigen::Vector3d& p, PointListCache& list, const M
                          double& best_squared, int& best_triangle, Eigen::Vector3d& closest);
 std::size_t filterListCandidates(const ListFilter& filter, const int* ids, std::size_t count, int* kept,
                                  std::size_t& near);
+bool edgeAxesSeparate(const Eigen::Vector3d a[3], const Eigen::Vector3d b[3], int corner_a, int corner_b,
+                      double threshold);
 }  // namespace cfl::detail::x86_64_v3
 #endif

@@ -404,13 +404,7 @@ class Search {
     const Eigen::Vector3d box_max_a = c[0].cwiseMax(c[1]).cwiseMax(c[2]);
     if (std::max((box_min_a - tb.box_max).maxCoeff(), (tb.box_min - box_max_a).maxCoeff()) >= threshold) return false;
     const Eigen::Vector3d axis = tb.center - mesh_a_.spheres[a].head<3>();
-    const double axis_squared = axis.squaredNorm();
-    if (axis_squared > 0) {
-      const double a_max = std::max({axis.dot(c[0]), axis.dot(c[1]), axis.dot(c[2])});
-      const double b_min = std::min({axis.dot(tb.corners[0]), axis.dot(tb.corners[1]), axis.dot(tb.corners[2])});
-      const double gap = b_min - a_max;
-      if (gap > 0 && gap * gap >= threshold * threshold * axis_squared) return false;
-    }
+    if (centerAxisSeparates(a, tb, axis, axis.squaredNorm(), threshold)) return false;
     const double s0 = planeOffset(normal_a, plane[3], tb.corners[0]),
                  s1 = planeOffset(normal_a, plane[3], tb.corners[1]),
                  s2 = planeOffset(normal_a, plane[3], tb.corners[2]);

@@ -69,6 +69,84 @@ float floatAbove(double x) {
   return f;
 }
 
+// Split choice. The median split by count keeps the tree balanced, which is right where the triangles are
+// of a size; where a few huge triangles lie among many tiny ones, it pairs them with runs of tiny ones, so
+// that every node down to the huge triangles' leaves has their size, and a query meets them only after a
+// dozen levels of loose bounds. A binned surface-area cost (each side's box area times its triangle count,
+// the expected work of a query meeting a node in proportion to its size) isolates such triangles near the
+// root; it replaces the median only where it is much cheaper, so that meshes of even triangles keep their
+// balanced trees.
+constexpr int kSahBins = 16;
+// The binned split is taken where its cost is below this fraction of the median split's.
+constexpr double kSahGain = 0.5;
+
+double surfaceArea(const Aabb& box) {
+  if (box.empty()) return 0;
+  const Eigen::Vector3d size = box.size();
+  return size[0] * size[1] + size[1] * size[2] + size[2] * size[0];
+}
+
+// The bin of a centroid coordinate `x` along `axis` of `centroid_box` (whose extent there is positive):
+// the binning and the partition that follows it must compute it the same way.
+int binOf(double x, const Aabb& centroid_box, int axis) {
+  const double extent = centroid_box.max[axis] - centroid_box.min[axis];
+  const int bin = static_cast<int>((x - centroid_box.min[axis]) * (kSahBins / extent));
+  return std::min(kSahBins - 1, std::max(0, bin));
+}
+
+struct SahSplit {
+  int axis = -1;  // -1: no split with both sides non-empty
+  int bin = 0;    // triangles whose centroid's bin is below this go left
+  double cost = std::numeric_limits<double>::infinity();
+};
+
+SahSplit bestBinnedSplit(const std::int32_t* ids, int count, const std::vector<Eigen::Vector3d>& centroids,
+                         const std::vector<Aabb>& triangle_boxes, const Aabb& centroid_box) {
+  SahSplit best;
+  for (int axis = 0; axis < 3; ++axis) {
+    if (!(centroid_box.max[axis] > centroid_box.min[axis])) continue;
+    Aabb boxes[kSahBins];
+    int counts[kSahBins] = {};
+    for (int i = 0; i < count; ++i) {
+      const int t = ids[i];
+      const int bin = binOf(centroids[t][axis], centroid_box, axis);
+      boxes[bin].extend(triangle_boxes[t]);
+      ++counts[bin];
+    }
+    // right_cost[b]: the cost of bins [b, kSahBins) as one side.
+    double right_cost[kSahBins];
+    int right_count[kSahBins];
+    Aabb right;
+    int right_total = 0;
+    for (int b = kSahBins - 1; b > 0; --b) {
+      if (counts[b] > 0) right.extend(boxes[b]);
+      right_total += counts[b];
+      right_cost[b] = surfaceArea(right) * right_total;
+      right_count[b] = right_total;
+    }
+    Aabb left;
+    int left_total = 0;
+    for (int b = 1; b < kSahBins; ++b) {
+      if (counts[b - 1] > 0) left.extend(boxes[b - 1]);
+      left_total += counts[b - 1];
+      if (left_total == 0 || right_count[b] == 0) continue;
+      const double cost = surfaceArea(left) * left_total + right_cost[b];
+      if (cost < best.cost) best.axis = axis, best.bin = b, best.cost = cost;
+    }
+  }
+  return best;
+}
+
+// The cost, as bestBinnedSplit counts it, of splitting `ids` after its first `middle` entries.
+double medianSplitCost(const std::int32_t* ids, int count, int middle, const std::vector<Aabb>& triangle_boxes) {
+  Aabb left, right;
+  for (int i = 0; i < middle; ++i) left.extend(triangle_boxes[ids[i]]);
+  for (int i = middle; i < count; ++i) {
+    right.extend(triangle_boxes[ids[i]]);
+  }
+  return surfaceArea(left) * middle + surfaceArea(right) * (count - middle);
+}
+
 }  // namespace
 
 Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
@@ -80,9 +158,11 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
   if (triangle_count == 0) return bvh;
 
   std::vector<Eigen::Vector3d> centroids(triangle_count);
+  std::vector<Aabb> triangle_boxes(triangle_count);
   for (int t = 0; t < triangle_count; ++t) {
     const auto& tri = mesh.triangles[t];
     centroids[t] = (mesh.vertices[tri[0]] + mesh.vertices[tri[1]] + mesh.vertices[tri[2]]) / 3.0;
+    for (int index : tri) triangle_boxes[t].extend(mesh.vertices[index]);
   }
 
   struct Range {
@@ -177,10 +257,19 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
     }
     int axis = 0;
     centroid_box.size().maxCoeff(&axis);
-    const int middle = range.begin + count / 2;
+    int middle = range.begin + count / 2;
     std::nth_element(bvh.triangle_ids.begin() + range.begin, bvh.triangle_ids.begin() + middle,
                      bvh.triangle_ids.begin() + range.end,
                      [&](int x, int y) { return centroids[x][axis] < centroids[y][axis]; });
+    const SahSplit sah = bestBinnedSplit(bvh.triangle_ids.data() + range.begin, count, centroids,
+                                         triangle_boxes, centroid_box);
+    if (sah.axis >= 0 && sah.cost < kSahGain * medianSplitCost(bvh.triangle_ids.data() + range.begin, count,
+                                                              count / 2, triangle_boxes)) {
+      const auto split = std::partition(
+          bvh.triangle_ids.begin() + range.begin, bvh.triangle_ids.begin() + range.end,
+          [&](int t) { return binOf(centroids[t][sah.axis], centroid_box, sah.axis) < sah.bin; });
+      middle = static_cast<int>(split - bvh.triangle_ids.begin());
+    }
     const int left = static_cast<int>(bvh.nodes.size());
     bvh.nodes.emplace_back();
     bvh.nodes.emplace_back();

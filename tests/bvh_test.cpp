@@ -15,6 +15,16 @@ namespace {
 
 using test::NamedMesh;
 
+// Many tiny triangles among a few huge ones, scattered: the split rule must still bound and partition them.
+TriangleMesh unevenSoup() {
+  TriangleMesh mesh = test::makeTriangleSoup(600, 7, 1.0, 0.02);
+  const TriangleMesh huge = test::makeTriangleSoup(12, 8, 1.0, 3.0);
+  const int offset = static_cast<int>(mesh.vertices.size());
+  mesh.vertices.insert(mesh.vertices.end(), huge.vertices.begin(), huge.vertices.end());
+  for (auto tri : huge.triangles) mesh.triangles.push_back({tri[0] + offset, tri[1] + offset, tri[2] + offset});
+  return mesh;
+}
+
 std::vector<NamedMesh> testMeshes() {
   return {
       {"torus", test::makeTorus()},
@@ -24,6 +34,8 @@ std::vector<NamedMesh> testMeshes() {
       {"messy", test::makeMessyMesh()},
       {"self_intersecting", test::makeSelfIntersectingMesh()},
       {"bunny", test::loadBunny()},
+      {"refined_slab", test::makeLocallyRefinedSlab(24)},
+      {"uneven_soup", unevenSoup()},
   };
 }
 
@@ -146,7 +158,7 @@ void checkInvariants(const TriangleMesh& mesh, const Bvh& bvh, int max_leaf_size
 
 TEST(Bvh, InvariantsHoldOnSeveralMeshesAndLeafSizes) {
   for (const NamedMesh& named : testMeshes()) {
-    for (int max_leaf_size : {1, 2, 4, 8}) {
+    for (int max_leaf_size : {1, 2, 4, 6, 8}) {
       const Bvh bvh = buildBvh(named.mesh, max_leaf_size);
       checkInvariants(named.mesh, bvh, max_leaf_size, named.name + " leaf size " + std::to_string(max_leaf_size));
     }
@@ -223,6 +235,66 @@ TEST(Bvh, IdenticalTrianglesAreSplitIntoBoundedLeaves) {
   points.vertices = {Eigen::Vector3d(0.5, -1, 2)};
   for (int t = 0; t < 9; ++t) points.triangles.push_back({0, 0, 0});
   checkInvariants(points, buildBvh(points, 2), 2, "point triangles");
+}
+
+// The depth of the leaf holding each triangle of `bvh`, by triangle id.
+std::vector<int> leafDepths(const Bvh& bvh) {
+  std::vector<int> depth(bvh.triangle_ids.size(), -1);
+  std::vector<std::pair<int, int>> stack{{0, 0}};
+  while (!stack.empty()) {
+    const auto [index, level] = stack.back();
+    stack.pop_back();
+    const BvhNode& node = bvh.nodes[index];
+    if (node.isLeaf()) {
+      for (int n = node.first; n < node.first + node.count; ++n) depth[bvh.triangle_ids[n]] = level;
+    } else {
+      stack.push_back({node.first, level + 1});
+      stack.push_back({node.first + 1, level + 1});
+    }
+  }
+  return depth;
+}
+
+// Where a few huge triangles lie next to many tiny ones, a split by count pairs them with runs of tiny ones
+// all the way down, and a query meets them only below many levels of loose nodes: they must sit near the
+// root, and the tiny ones under nodes of their own size.
+TEST(Bvh, HugeTrianglesNextToTinyOnesSitNearTheRoot) {
+  for (const NamedMesh& named : {NamedMesh{"refined_slab", test::makeLocallyRefinedSlab(60)},
+                                 NamedMesh{"uneven_soup", unevenSoup()}}) {
+    SCOPED_TRACE(named.name);
+    const TriangleMesh& mesh = named.mesh;
+    const Bvh bvh = buildBvh(mesh, 6);
+    checkInvariants(mesh, bvh, 6, named.name);
+    const std::vector<int> depth = leafDepths(bvh);
+    const double root_size = bvh.nodes[0].box().diagonal();
+    int huge = 0, tiny = 0;
+    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+      Aabb box;
+      for (int index : mesh.triangles[t]) box.extend(mesh.vertices[index]);
+      if (box.diagonal() > 0.2 * root_size) {
+        ++huge;
+        EXPECT_LE(depth[t], 8) << "huge triangle " << t;
+      } else if (box.diagonal() < 0.01 * root_size) {
+        ++tiny;
+      }
+    }
+    EXPECT_GE(huge, 10);
+    EXPECT_GE(tiny, 500);
+    // The nodes holding a huge triangle are few: the huge triangles' ancestors, not half the tree.
+    std::vector<int> order{0};
+    for (std::size_t k = 0; k < order.size(); ++k) {
+      const BvhNode& node = bvh.nodes[order[k]];
+      bool has_huge = false;
+      for (int n = node.subtree_first; n < node.subtree_first + node.subtree_count; ++n) {
+        Aabb box;
+        for (int index : mesh.triangles[bvh.triangle_ids[n]]) box.extend(mesh.vertices[index]);
+        has_huge = has_huge || box.diagonal() > 0.2 * root_size;
+      }
+      if (!has_huge) continue;
+      if (!node.isLeaf()) order.push_back(node.first), order.push_back(node.first + 1);
+    }
+    EXPECT_LE(order.size(), 3u * huge) << "nodes over huge triangles";
+  }
 }
 
 TEST(Bvh, BuildIsDeterministic) {

@@ -100,35 +100,42 @@ struct SahSplit {
   double cost = std::numeric_limits<double>::infinity();
 };
 
+// The cheapest split, by the cost above, between kSahBins bins of the centroids along any axis of
+// `centroid_box` (one pass over the triangles bins them along all three).
 SahSplit bestBinnedSplit(const std::int32_t* ids, int count, const std::vector<Eigen::Vector3d>& centroids,
                          const std::vector<Aabb>& triangle_boxes, const Aabb& centroid_box) {
+  bool splits[3];
+  for (int axis = 0; axis < 3; ++axis) splits[axis] = centroid_box.max[axis] > centroid_box.min[axis];
+  Aabb boxes[3][kSahBins];
+  int counts[3][kSahBins] = {};
+  for (int i = 0; i < count; ++i) {
+    const int t = ids[i];
+    for (int axis = 0; axis < 3; ++axis) {
+      if (!splits[axis]) continue;
+      const int bin = binOf(centroids[t][axis], centroid_box, axis);
+      boxes[axis][bin].extend(triangle_boxes[t]);
+      ++counts[axis][bin];
+    }
+  }
   SahSplit best;
   for (int axis = 0; axis < 3; ++axis) {
-    if (!(centroid_box.max[axis] > centroid_box.min[axis])) continue;
-    Aabb boxes[kSahBins];
-    int counts[kSahBins] = {};
-    for (int i = 0; i < count; ++i) {
-      const int t = ids[i];
-      const int bin = binOf(centroids[t][axis], centroid_box, axis);
-      boxes[bin].extend(triangle_boxes[t]);
-      ++counts[bin];
-    }
+    if (!splits[axis]) continue;
     // right_cost[b]: the cost of bins [b, kSahBins) as one side.
     double right_cost[kSahBins];
     int right_count[kSahBins];
     Aabb right;
     int right_total = 0;
     for (int b = kSahBins - 1; b > 0; --b) {
-      if (counts[b] > 0) right.extend(boxes[b]);
-      right_total += counts[b];
+      if (counts[axis][b] > 0) right.extend(boxes[axis][b]);
+      right_total += counts[axis][b];
       right_cost[b] = surfaceArea(right) * right_total;
       right_count[b] = right_total;
     }
     Aabb left;
     int left_total = 0;
     for (int b = 1; b < kSahBins; ++b) {
-      if (counts[b - 1] > 0) left.extend(boxes[b - 1]);
-      left_total += counts[b - 1];
+      if (counts[axis][b - 1] > 0) left.extend(boxes[axis][b - 1]);
+      left_total += counts[axis][b - 1];
       if (left_total == 0 || right_count[b] == 0) continue;
       const double cost = surfaceArea(left) * left_total + right_cost[b];
       if (cost < best.cost) best.axis = axis, best.bin = b, best.cost = cost;

@@ -46,9 +46,11 @@ struct alignas(64) BvhNode {
   }
 };
 
-/// The hierarchy; nodes[0] is the root. Built top-down by splitting the longest axis of the centroid
-/// bounds at the median (binned SAH would be tighter; median split keeps builds fast and deterministic).
-/// Immutable after construction, so concurrent readers are safe.
+/// The hierarchy; nodes[0] is the root. Built top-down: each node splits the longest axis of its
+/// triangles' centroid bounds at the median, unless a binned surface-area split (along any axis) costs
+/// under half as much, which happens where triangle sizes are very uneven (a few huge triangles among many
+/// tiny ones end up near the root). Deterministic. Immutable after construction, so concurrent readers
+/// are safe.
 struct Bvh {
   std::vector<BvhNode> nodes;
   std::vector<std::int32_t> triangle_ids;  ///< Triangle ids in leaf order.

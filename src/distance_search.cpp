@@ -48,9 +48,10 @@ constexpr int kTriangleWalkNodes = 64;
 // The search's first descent towards an intersecting triangle pair (Search::probeForContact) takes at most
 // this many node-pair bounds, only where B's largest leaf has at least kContactProbeLargeLeaf of B's radius,
 // and only where the roots' oriented boxes overlap by more than kContactProbeOverlap of the larger root's
-// radius (a part much smaller than A overlaps A's root box wherever it lies within it). Looser gates (an
-// overlap of half or 0.7 of the radius, or any B) also let in poses near contact but apart (a ground plane
-// under a bunny) and overlapping compact meshes, where the descent runs its whole budget for nothing.
+// radius, or of the thicker root box's thinnest extent where that is less (a part much smaller than A
+// overlaps A's root box wherever it lies within it). Looser gates (an overlap of half or 0.7 of the radius,
+// or any B) also let in poses near contact but apart (a ground plane under a bunny) and overlapping compact
+// meshes, where the descent runs its whole budget for nothing.
 constexpr int kContactProbeBounds = 128;
 constexpr double kContactProbeLargeLeaf = 0.3;
 constexpr double kContactProbeOverlap = 0.85;
@@ -1066,9 +1067,13 @@ class Search {
     }
     if (!(nodes_b[largest].radius >= kContactProbeLargeLeaf * nodes_b[0].radius)) return;
     // And only where the two roots' oriented boxes overlap deeply for their size: near contact but apart, or
-    // where a small B lies anywhere inside A's box, the descent runs its whole budget for nothing.
+    // where a small B lies anywhere inside A's box, the descent runs its whole budget for nothing. Their size
+    // is at most the thicker root box's thinnest extent: two crossing slabs overlap by about their
+    // thickness however wide they are, so that the radius alone kept the descent from every such pose.
     const double root = nodePairLowerBound(0, place(0, X_AB_.apply(nodes_b[0].center)), kInfinity);
-    if (!(root < -kContactProbeOverlap * std::max(nodes_b[0].radius, nodes_a[0].radius))) return;
+    const double size = std::min(std::max(nodes_b[0].radius, nodes_a[0].radius),
+                                 2 * std::max(nodes_a[0].obb_half.minCoeff(), nodes_b[0].obb_half.minCoeff()));
+    if (!(root < -kContactProbeOverlap * size)) return;
     PairStep stack[128];
     int top = 0;
     stack[top++] = {0, 0};

@@ -52,7 +52,9 @@ Eigen::Vector4d boundingSphere(const std::array<Eigen::Vector3d, 3>& c) {
 // queries split a leaf of several into its triangles wherever they would have split an inner node, so the
 // levels below a leaf cost no pruning. The median split makes leaves of between half this and this many
 // triangles, depending on n: 6 gives leaves of 3 to 6, where 8 gave some meshes leaves of 7 and 8, whose
-// splitting into single triangles cost far-apart queries more than the nodes of 4 it replaced.
+// splitting into single triangles cost far-apart queries more than the nodes of 4 it replaced. (Where
+// buildBvh takes its surface-area split instead, among triangles of very uneven sizes, a leaf may hold
+// fewer: a huge triangle gets a leaf of its own near the root.)
 constexpr int kBvhLeafTriangles = 6;
 
 }  // namespace

@@ -302,6 +302,106 @@ TEST(CflBuilder, ListsAreConservativeOnAThinPlate) {
   }
 }
 
+// A small turbine blade like the suite's: an elliptic airfoil swept along a span, tapering, and capped. It
+// is thinner than its triangles are wide, and its curved faces keep topology culling from removing the
+// opposite face, so the cells near it list both faces and their lists stay long where the cells stop
+// splitting: the leaves where the split rule and the caps on list lengths decide.
+TriangleMesh makeAirfoilBlade(int around = 32, int span = 24, double half_chord = 1.0, double half_thickness = 0.04,
+                              double length = 8.0) {
+  const double pi = std::acos(-1.0);
+  TriangleMesh mesh;
+  for (int i = 0; i < span; ++i) {
+    const double s = double(i) / (span - 1);
+    for (int k = 0; k < around; ++k) {
+      const double t = 2 * pi * k / around;
+      mesh.vertices.push_back(Eigen::Vector3d(0.2 * s + half_chord * (1 - 0.2 * s) * std::sin(t), length * s,
+                                              half_thickness * (1 - 0.4 * s) * std::cos(t)));
+    }
+  }
+  auto ring = [&](int i, int k) { return i * around + k % around; };
+  for (int i = 0; i + 1 < span; ++i) {
+    for (int k = 0; k < around; ++k) {  // outward: the tangent along the ring, then the span
+      mesh.triangles.push_back({ring(i, k), ring(i, k + 1), ring(i + 1, k + 1)});
+      mesh.triangles.push_back({ring(i, k), ring(i + 1, k + 1), ring(i + 1, k)});
+    }
+  }
+  const int root = static_cast<int>(mesh.vertices.size());
+  mesh.vertices.push_back(Eigen::Vector3d(0, 0, 0));
+  mesh.vertices.push_back(Eigen::Vector3d(0.2, length, 0));
+  for (int k = 0; k < around; ++k) {
+    mesh.triangles.push_back({root, ring(0, k + 1), ring(0, k)});
+    mesh.triangles.push_back({root + 1, ring(span - 1, k), ring(span - 1, k + 1)});
+  }
+  return mesh;
+}
+
+TEST(CflBuilder, ListsAreConservativeOnAThinAirfoilBlade) {
+  const TriangleMesh blade = makeAirfoilBlade();
+  for (bool culling : {false, true}) {
+    const std::string label = std::string("airfoil blade") + (culling ? " with topology culling" : "");
+    const CflModel model = buildCflModel(blade, options(0, culling));
+    // The thin part is what the test is for: some leaves meeting the blade must list the middles of both of
+    // its faces (side triangles 2 (i around + k) and the next, ring position k at angle 2 pi k / around from
+    // the top).
+    int both_faces = 0;
+    for (const LeafBox& leaf : allLeaves(model.regions)) {
+      if (!model.regions.hasList(leaf.leaf) || model.regions.leaf_lower_bound[leaf.leaf] > 0) continue;
+      bool top = false, bottom = false;
+      for (std::uint32_t n = 0; n < model.regions.leafListLength(leaf.leaf); ++n) {
+        const int t = model.regions.leafListTriangle(leaf.leaf, n);
+        if (t >= 2 * 32 * 23) continue;  // a cap
+        const int k = (t / 2) % 32;
+        top |= k <= 2 || k >= 30;
+        bottom |= k >= 14 && k <= 18;
+      }
+      both_faces += top && bottom;
+    }
+    EXPECT_GT(both_faces, 0) << label;
+    EXPECT_EQ(checkConservative(model, blade, 2500, culling ? 62 : 61, label), 0) << label;
+  }
+}
+
+// The split rule at a thin part (buildCflModel): a leaf within half its edge of the blade whose list holds more than
+// 96 triangles, one facing away from the lowest-numbered, has split unless it is at most max(1, 192 / length) mean
+// edges of its list. Checked with margins on every side, so a leaf found here broke the rule; without the rule the
+// blade's leaves that straddle it stop at 2 mean edges with such lists.
+TEST(CflBuilder, CellsAtAThinPartSplitWhileTheirListsHoldBothFacesAndStayLong) {
+  const TriangleMesh blade = makeAirfoilBlade();
+  for (bool culling : {false, true}) {
+    const std::string label = std::string("airfoil blade") + (culling ? " with topology culling" : "");
+    const CflModel model = buildCflModel(blade, options(0, culling));
+    const RegionTree& tree = model.regions;
+    int checked = 0, unsplit = 0;
+    for (const LeafBox& leaf : allLeaves(tree)) {
+      if (!tree.hasList(leaf.leaf) || !(tree.leaf_lower_bound[leaf.leaf] <= 0.49 * leaf.size)) continue;
+      const std::uint32_t length = tree.leafListLength(leaf.leaf);
+      if (length <= 96) continue;
+      double edge_sum = 0;
+      std::vector<std::pair<int, Eigen::Vector3d>> normals;  // by id
+      for (std::uint32_t n = 0; n < length; ++n) {
+        const int t = tree.leafListTriangle(leaf.leaf, n);
+        const auto& tri = blade.triangles[t];
+        const Eigen::Vector3d a = blade.vertices[tri[0]], b = blade.vertices[tri[1]], c = blade.vertices[tri[2]];
+        edge_sum += ((b - a).norm() + (c - b).norm() + (a - c).norm()) / 3;
+        normals.push_back({t, (b - a).cross(c - a).normalized()});
+      }
+      // Facing away from the lowest id's normal.
+      std::sort(normals.begin(), normals.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+      bool opposite = false;
+      for (const auto& entry : normals) opposite |= entry.second.dot(normals.front().second) < -0.51;
+      if (!opposite) continue;
+      ++checked;
+      const double smallest = std::max(1.0, 192.0 / length) * edge_sum / length;
+      if (leaf.size > 1.01 * smallest && leaf.depth < 20 && ++unsplit <= 5) {
+        ADD_FAILURE() << label << ": leaf " << leaf.leaf << " of edge " << leaf.size << " lists " << length
+                      << " triangles of both faces, of mean edge " << edge_sum / length << ", and did not split";
+      }
+    }
+    EXPECT_GT(checked, 0) << label;
+    EXPECT_EQ(unsplit, 0) << label;
+  }
+}
+
 // A cell may decide to split before its list is complete (when the split rule holds whatever the rest of the
 // list): a shortcut for speed, which must not change the model. Built with and without it, every cell, every
 // list, every entry bound and every lower bound must agree; the count proves the shortcut was taken.
@@ -309,6 +409,7 @@ TEST(CflBuilder, EarlySplitDecisionsChangeNothing) {
   std::vector<NamedMesh> meshes = testMeshes();
   meshes.push_back({"bunny", test::loadBunny()});
   meshes.push_back({"thin plate", test::makeThinPlate(1.0, 0.05, 12)});
+  meshes.push_back({"airfoil blade", makeAirfoilBlade()});
   std::int64_t decisions = 0;
   for (const NamedMesh& named : meshes) {
     for (bool culling : {false, true}) {

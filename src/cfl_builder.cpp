@@ -313,20 +313,6 @@ std::int64_t capacityBytes(const std::vector<T>& v) {
 constexpr std::uint32_t kListTarget = 8;
 constexpr double kSmallestCell = 2;
 constexpr double kFarCellRatio = 0.5;
-// Except at a thin part. A cell that meets a part thinner than itself lists both of its faces, so its list stays
-// long however small the triangles are against the cell; halving it halves the part's width it sees along both faces
-// and shortens the list as nowhere else. So a cell down to kSmallestCell mean edges still splits when its list holds
-// more than kThinList triangles, one of them facing away from the one of lowest id (unit normals whose dot product
-// is below kOppositeFacing), when its listed lower bound is at most kThinNearRatio times its edge (it meets or
-// nearly meets the mesh: farther cells serve queries the Bvh bounds answer), and while it is larger than
-// kSmallestCell kThinList / length mean edges, never below kSmallestThinCell. The list length and the facing keep
-// compact meshes, where cells below kSmallestCell edges cost short-range queries time (see above), to the usual
-// rule. The rule only ever splits more than the usual one, so a cell that computeCellList finds certain to split
-// under the usual rule splits under this one too.
-constexpr std::uint32_t kThinList = 96;
-constexpr double kOppositeFacing = -0.5;
-constexpr double kThinNearRatio = 0.5;
-constexpr double kSmallestThinCell = 1;
 // A leaf whose list stays longer than this stores none (RegionTree::kNoList): scanning it would cost more
 // than testing what falls there against the Bvh, and storing it more memory than the rest of the model.
 // Next to the mesh (a leaf no farther from it than kNearCells edges) lists are what short-range queries
@@ -1047,33 +1033,13 @@ class SubtreeBuilder {
     // The detail the cell is near: its listed triangles' mean edge.
     double edge = 0;
     for (std::size_t n = begin; n < begin + length; ++n) edge += triangle_edge_[out.lists.ids[n]];
-    if (!(size > kSmallestCell * edge / std::max<std::uint32_t>(length, 1)) &&
-        !splitsAtAThinPart(out, begin, length, size, edge)) {
-      return false;
-    }
+    if (!(size > kSmallestCell * edge / std::max<std::uint32_t>(length, 1))) return false;
     if (length <= kListTarget || size <= kFarCellRatio * out.lists.lower_bound) return false;
     if (budget_.bytes.load(std::memory_order_relaxed) > budget_.limit) {
       budget_.exceeded = true;
       return false;
     }
     return true;
-  }
-
-  // Whether a cell no larger than kSmallestCell mean edges of its list still splits (see kThinList);
-  // `edge_sum` is the sum of the listed triangles' mean edges.
-  bool splitsAtAThinPart(const Subtree& out, std::size_t begin, std::uint32_t length, double size,
-                         double edge_sum) const {
-    if (length <= kThinList || !(out.lists.lower_bound <= kThinNearRatio * size)) return false;
-    const double smallest = std::max(kSmallestThinCell, kSmallestCell * double(kThinList) / double(length));
-    if (!(size > smallest * edge_sum / double(length))) return false;
-    // Against the lowest id's normal: the answer does not depend on the order of the list.
-    const std::vector<Eigen::Vector4d>& planes = context_.geometry.planes;
-    const auto ids = out.lists.ids.begin() + std::ptrdiff_t(begin);
-    const Eigen::Vector3d reference = planes[*std::min_element(ids, ids + length)].head<3>();
-    for (std::size_t n = begin; n < begin + length; ++n) {
-      if (planes[out.lists.ids[n]].head<3>().dot(reference) < kOppositeFacing) return true;
-    }
-    return false;
   }
 
   void split(ListScratch& scratch, const Eigen::Vector3d& min_corner, double size, int depth, double lower,

@@ -361,47 +361,6 @@ TEST(CflBuilder, ListsAreConservativeOnAThinAirfoilBlade) {
   }
 }
 
-// The split rule at a thin part (buildCflModel): a leaf within half its edge of the blade whose list holds more than
-// 96 triangles, one facing away from the lowest-numbered, has split unless it is at most max(1, 192 / length) mean
-// edges of its list. Checked with margins on every side, so a leaf found here broke the rule; without the rule the
-// blade's leaves that straddle it stop at 2 mean edges with such lists.
-TEST(CflBuilder, CellsAtAThinPartSplitWhileTheirListsHoldBothFacesAndStayLong) {
-  const TriangleMesh blade = makeAirfoilBlade();
-  for (bool culling : {false, true}) {
-    const std::string label = std::string("airfoil blade") + (culling ? " with topology culling" : "");
-    const CflModel model = buildCflModel(blade, options(0, culling));
-    const RegionTree& tree = model.regions;
-    int checked = 0, unsplit = 0;
-    for (const LeafBox& leaf : allLeaves(tree)) {
-      if (!tree.hasList(leaf.leaf) || !(tree.leaf_lower_bound[leaf.leaf] <= 0.49 * leaf.size)) continue;
-      const std::uint32_t length = tree.leafListLength(leaf.leaf);
-      if (length <= 96) continue;
-      double edge_sum = 0;
-      std::vector<std::pair<int, Eigen::Vector3d>> normals;  // by id
-      for (std::uint32_t n = 0; n < length; ++n) {
-        const int t = tree.leafListTriangle(leaf.leaf, n);
-        const auto& tri = blade.triangles[t];
-        const Eigen::Vector3d a = blade.vertices[tri[0]], b = blade.vertices[tri[1]], c = blade.vertices[tri[2]];
-        edge_sum += ((b - a).norm() + (c - b).norm() + (a - c).norm()) / 3;
-        normals.push_back({t, (b - a).cross(c - a).normalized()});
-      }
-      // Facing away from the lowest id's normal.
-      std::sort(normals.begin(), normals.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
-      bool opposite = false;
-      for (const auto& entry : normals) opposite |= entry.second.dot(normals.front().second) < -0.51;
-      if (!opposite) continue;
-      ++checked;
-      const double smallest = std::max(1.0, 192.0 / length) * edge_sum / length;
-      if (leaf.size > 1.01 * smallest && leaf.depth < 20 && ++unsplit <= 5) {
-        ADD_FAILURE() << label << ": leaf " << leaf.leaf << " of edge " << leaf.size << " lists " << length
-                      << " triangles of both faces, of mean edge " << edge_sum / length << ", and did not split";
-      }
-    }
-    EXPECT_GT(checked, 0) << label;
-    EXPECT_EQ(unsplit, 0) << label;
-  }
-}
-
 // A cell may decide to split before its list is complete (when the split rule holds whatever the rest of the
 // list): a shortcut for speed, which must not change the model. Built with and without it, every cell, every
 // list, every entry bound and every lower bound must agree; the count proves the shortcut was taken.

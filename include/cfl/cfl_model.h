@@ -86,10 +86,7 @@ struct CflModel {
 ///
 /// Adaptive (resolution 0): a root grid of 16 cells along the padded box's longest axis; a cell splits in
 /// eight while its list holds more than 8 triangles, it is larger than 2 mean edges of those triangles,
-/// and it is larger than half its distance from the mesh. At a part thinner than a cell (a cell within
-/// half its edge of the mesh whose list holds more than 96 triangles, one facing away from the
-/// lowest-numbered), the cell still splits while larger than max(1, 192 / list length) mean edges: its
-/// list holds both faces and only a smaller cell shortens it. A leaf whose list is still longer than 256
+/// and it is larger than half its distance from the mesh. A leaf whose list is still longer than 256
 /// triangles within 4 of its edges from the mesh, or 64 farther out, stores none (RegionTree::kNoList);
 /// queries use the Bvh there.
 ///

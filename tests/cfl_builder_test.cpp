@@ -302,6 +302,65 @@ TEST(CflBuilder, ListsAreConservativeOnAThinPlate) {
   }
 }
 
+// A small turbine blade like the suite's: an elliptic airfoil swept along a span, tapering, and capped. It
+// is thinner than its triangles are wide, and its curved faces keep topology culling from removing the
+// opposite face, so the cells near it list both faces and their lists stay long where the cells stop
+// splitting: the leaves where the split rule and the caps on list lengths decide.
+TriangleMesh makeAirfoilBlade(int around = 32, int span = 24, double half_chord = 1.0, double half_thickness = 0.04,
+                              double length = 8.0) {
+  const double pi = std::acos(-1.0);
+  TriangleMesh mesh;
+  for (int i = 0; i < span; ++i) {
+    const double s = double(i) / (span - 1);
+    for (int k = 0; k < around; ++k) {
+      const double t = 2 * pi * k / around;
+      mesh.vertices.push_back(Eigen::Vector3d(0.2 * s + half_chord * (1 - 0.2 * s) * std::sin(t), length * s,
+                                              half_thickness * (1 - 0.4 * s) * std::cos(t)));
+    }
+  }
+  auto ring = [&](int i, int k) { return i * around + k % around; };
+  for (int i = 0; i + 1 < span; ++i) {
+    for (int k = 0; k < around; ++k) {  // outward: the tangent along the ring, then the span
+      mesh.triangles.push_back({ring(i, k), ring(i, k + 1), ring(i + 1, k + 1)});
+      mesh.triangles.push_back({ring(i, k), ring(i + 1, k + 1), ring(i + 1, k)});
+    }
+  }
+  const int root = static_cast<int>(mesh.vertices.size());
+  mesh.vertices.push_back(Eigen::Vector3d(0, 0, 0));
+  mesh.vertices.push_back(Eigen::Vector3d(0.2, length, 0));
+  for (int k = 0; k < around; ++k) {
+    mesh.triangles.push_back({root, ring(0, k + 1), ring(0, k)});
+    mesh.triangles.push_back({root + 1, ring(span - 1, k), ring(span - 1, k + 1)});
+  }
+  return mesh;
+}
+
+TEST(CflBuilder, ListsAreConservativeOnAThinAirfoilBlade) {
+  const TriangleMesh blade = makeAirfoilBlade();
+  for (bool culling : {false, true}) {
+    const std::string label = std::string("airfoil blade") + (culling ? " with topology culling" : "");
+    const CflModel model = buildCflModel(blade, options(0, culling));
+    // The thin part is what the test is for: some leaves meeting the blade must list the middles of both of
+    // its faces (side triangles 2 (i around + k) and the next, ring position k at angle 2 pi k / around from
+    // the top).
+    int both_faces = 0;
+    for (const LeafBox& leaf : allLeaves(model.regions)) {
+      if (!model.regions.hasList(leaf.leaf) || model.regions.leaf_lower_bound[leaf.leaf] > 0) continue;
+      bool top = false, bottom = false;
+      for (std::uint32_t n = 0; n < model.regions.leafListLength(leaf.leaf); ++n) {
+        const int t = model.regions.leafListTriangle(leaf.leaf, n);
+        if (t >= 2 * 32 * 23) continue;  // a cap
+        const int k = (t / 2) % 32;
+        top |= k <= 2 || k >= 30;
+        bottom |= k >= 14 && k <= 18;
+      }
+      both_faces += top && bottom;
+    }
+    EXPECT_GT(both_faces, 0) << label;
+    EXPECT_EQ(checkConservative(model, blade, 2500, culling ? 62 : 61, label), 0) << label;
+  }
+}
+
 // A cell may decide to split before its list is complete (when the split rule holds whatever the rest of the
 // list): a shortcut for speed, which must not change the model. Built with and without it, every cell, every
 // list, every entry bound and every lower bound must agree; the count proves the shortcut was taken.
@@ -309,6 +368,7 @@ TEST(CflBuilder, EarlySplitDecisionsChangeNothing) {
   std::vector<NamedMesh> meshes = testMeshes();
   meshes.push_back({"bunny", test::loadBunny()});
   meshes.push_back({"thin plate", test::makeThinPlate(1.0, 0.05, 12)});
+  meshes.push_back({"airfoil blade", makeAirfoilBlade()});
   std::int64_t decisions = 0;
   for (const NamedMesh& named : meshes) {
     for (bool culling : {false, true}) {

@@ -79,6 +79,10 @@ float floatAbove(double x) {
 constexpr int kSahBins = 16;
 // The binned split is taken where its cost is below this fraction of the median split's.
 constexpr double kSahGain = 0.5;
+// ... and only above this depth. Each binned split may peel off as little as one triangle (triangles each
+// much larger than all the smaller ones together), while a median split halves the count: below this depth
+// a tree of up to 2^31 triangles has at most 32 more levels, within Bvh::kMaxDepth.
+constexpr int kSahDeepest = Bvh::kMaxDepth - 32;
 
 double surfaceArea(const Aabb& box) {
   if (box.empty()) return 0;
@@ -173,11 +177,11 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
   }
 
   struct Range {
-    int node, begin, end;
+    int node, begin, end, depth;
   };
   bvh.nodes.reserve(2 * triangle_count);
   bvh.nodes.emplace_back();
-  std::vector<Range> stack{{0, 0, triangle_count}};
+  std::vector<Range> stack{{0, 0, triangle_count, 0}};
   while (!stack.empty()) {
     const Range range = stack.back();
     stack.pop_back();
@@ -268,8 +272,9 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
     std::nth_element(bvh.triangle_ids.begin() + range.begin, bvh.triangle_ids.begin() + middle,
                      bvh.triangle_ids.begin() + range.end,
                      [&](int x, int y) { return centroids[x][axis] < centroids[y][axis]; });
-    const SahSplit sah = bestBinnedSplit(bvh.triangle_ids.data() + range.begin, count, centroids,
-                                         triangle_boxes, centroid_box);
+    const SahSplit sah = range.depth < kSahDeepest ? bestBinnedSplit(bvh.triangle_ids.data() + range.begin, count,
+                                                                     centroids, triangle_boxes, centroid_box)
+                                                   : SahSplit{};
     if (sah.axis >= 0 && sah.cost < kSahGain * medianSplitCost(bvh.triangle_ids.data() + range.begin, count,
                                                               count / 2, triangle_boxes)) {
       const auto split = std::partition(
@@ -282,8 +287,8 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
     bvh.nodes.emplace_back();
     bvh.nodes[range.node].first = left;
     bvh.nodes[range.node].count = 0;
-    stack.push_back({left + 1, middle, range.end});
-    stack.push_back({left, range.begin, middle});
+    stack.push_back({left + 1, middle, range.end, range.depth + 1});
+    stack.push_back({left, range.begin, middle, range.depth + 1});
   }
   bvh.nodes.shrink_to_fit();  // reserved for leaves of one triangle
   return bvh;

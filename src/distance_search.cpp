@@ -750,7 +750,7 @@ class Search {
   template <class Spill>
   void walkTriangleAgainstBvh(const PreparedTriangle& tb, int root, int budget, Spill& spill) {
     const auto& nodes = mesh_a_.bvh.nodes;
-    int stack[128];  // depth-first, one pending sibling per level of a median-split tree
+    int stack[128];  // depth-first, one pending sibling per level: Bvh::kMaxDepth + 1 at most
     int top = 0;
     stack[top++] = root;
     while (top > 0) {

@@ -157,7 +157,7 @@ Closest closestTriangle(const CflModel& model, const Eigen::Vector3d& a, const E
   Aabb segment_box;
   segment_box.extend(a);
   segment_box.extend(b);
-  // Depth-first, nearer child first; the tree is at most ~log2(n) + 1 deep and the search keeps one pending
+  // Depth-first, nearer child first; the tree is at most Bvh::kMaxDepth deep and the search keeps one pending
   // sibling per level, so 128 entries cannot overflow (as in detail/nearest_triangle.h).
   struct Pending {
     int node;

@@ -31,7 +31,7 @@ double windingNumber(const MeshModel& model, const MeshSign& sign, const Eigen::
   const auto& nodes = model.bvh.nodes;
   const WindingField& field = windingField(model, sign);
   if (nodes.empty() || field.dipole_index.size() != nodes.size()) return 0;
-  // Depth-first; one pending sibling per level of a median-split tree (see nearestTriangle).
+  // Depth-first; one pending sibling per level, at most Bvh::kMaxDepth + 1 (see nearestTriangle).
   int stack[128];
   int top = 0;
   stack[top++] = 0;

@@ -297,6 +297,28 @@ TEST(Bvh, HugeTrianglesNextToTinyOnesSitNearTheRoot) {
   }
 }
 
+// Each triangle's box dwarfs all the smaller ones together, so a surface-area split would peel them off one
+// level at a time: the tree must still stay shallow enough for the fixed stacks of the depth-first walks.
+TEST(Bvh, NestedTrianglesOfGeometricSizesKeepTheTreeWithinItsDepthBound) {
+  TriangleMesh mesh;
+  // From 1e100 down to about 1e-94 units: squares stay far from overflow and underflow.
+  const int count = 150;
+  double size = 1e100;
+  for (int k = 0; k < count; ++k, size *= 0.05) {
+    const int v = static_cast<int>(mesh.vertices.size());
+    mesh.vertices.emplace_back(size, 0, 0);
+    mesh.vertices.emplace_back(size, size, 0);
+    mesh.vertices.emplace_back(size, 0, size);
+    mesh.triangles.push_back({v, v + 1, v + 2});
+  }
+  for (int leaf_size : {1, 6}) {
+    const Bvh bvh = buildBvh(mesh, leaf_size);
+    checkInvariants(mesh, bvh, leaf_size, "nested");
+    const std::vector<int> depth = leafDepths(bvh);
+    EXPECT_LE(*std::max_element(depth.begin(), depth.end()), Bvh::kMaxDepth) << "leaf size " << leaf_size;
+  }
+}
+
 TEST(Bvh, BuildIsDeterministic) {
   const TriangleMesh mesh = test::makeTriangleSoup(300, 5);
   const Bvh first = buildBvh(mesh, 2);

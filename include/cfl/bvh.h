@@ -52,6 +52,9 @@ struct alignas(64) BvhNode {
 /// tiny ones end up near the root). Deterministic. Immutable after construction, so concurrent readers
 /// are safe.
 struct Bvh {
+  /// No leaf lies deeper than this below the root (the root is at depth 0), so a depth-first walk that keeps
+  /// one pending sibling per level fits in a fixed stack of kMaxDepth + 1 entries.
+  static constexpr int kMaxDepth = 96;
   std::vector<BvhNode> nodes;
   std::vector<std::int32_t> triangle_ids;  ///< Triangle ids in leaf order.
 };

@@ -13,6 +13,9 @@
 
 namespace cfl::detail {
 
+// The Bvh walks' fixed stacks hold 128 pending nodes: one per level below the root, and the root.
+static_assert(Bvh::kMaxDepth + 1 <= 128, "fixed walk stacks are too small for the Bvh's depth");
+
 /// Squared distance from p to the box (0 inside).
 inline double pointBoxSquaredDistance(const Eigen::Vector3d& p, const Aabb& box) {
   const Eigen::Vector3d below = (box.min - p).cwiseMax(0.0);
@@ -196,8 +199,8 @@ inline void nearestTriangle(const MeshModel& model, const Eigen::Vector3d& p, do
                             Eigen::Vector3d* closest = nullptr, PointTriangles4 four = nullptr) {
   const auto& nodes = model.bvh.nodes;
   if (nodes.empty()) return;
-  // Median-split trees are at most ~log2(n) + 1 deep and depth-first search keeps at most one pending
-  // sibling per level, so 128 entries cannot overflow.
+  // The tree is at most Bvh::kMaxDepth deep and depth-first search keeps at most one pending sibling per
+  // level, so 128 entries cannot overflow.
   int stack[128];
   int top = 0;
   if (pointBoxSquaredDistance(p, nodes[0].box()) > best_squared) return;

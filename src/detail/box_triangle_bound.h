@@ -34,30 +34,40 @@ inline double cubeTriangleSeparatingAxisBound(const Eigen::Vector3d& center, dou
   const double v[3][3] = {{a.x() - center.x(), a.y() - center.y(), a.z() - center.z()},
                           {b.x() - center.x(), b.y() - center.y(), b.z() - center.z()},
                           {c.x() - center.x(), c.y() - center.y(), c.z() - center.z()}};
-  double bound = std::max(at_least, 0.0);
-  auto axisGap = [&](double x, double y, double z) {
-    const double p0 = x * v[0][0] + y * v[0][1] + z * v[0][2];
-    const double p1 = x * v[1][0] + y * v[1][1] + z * v[1][2];
-    const double p2 = x * v[2][0] + y * v[2][1] + z * v[2][2];
-    const double radius = half * (std::abs(x) + std::abs(y) + std::abs(z));
-    const double gap = std::max(std::min({p0, p1, p2}) - radius, -std::max({p0, p1, p2}) - radius);
-    if (!(gap > 0)) return;
-    const double length_squared = x * x + y * y + z * z;
-    if (!(gap * gap > bound * bound * length_squared)) return;
-    const double length = std::sqrt(length_squared);
-    if (!(length > 1e-300)) return;
-    bound = std::max(bound, gap / length);
-  };
   double e[3][3];
   for (int n = 0; n < 3; ++n) {
     for (int d = 0; d < 3; ++d) e[n][d] = v[(n + 1) % 3][d] - v[n][d];
   }
-  axisGap(e[0][1] * e[1][2] - e[0][2] * e[1][1], e[0][2] * e[1][0] - e[0][0] * e[1][2],
-          e[0][0] * e[1][1] - e[0][1] * e[1][0]);
-  for (const auto& edge : e) {
-    axisGap(0, -edge[2], edge[1]);
-    axisGap(edge[2], 0, -edge[0]);
-    axisGap(-edge[1], edge[0], 0);
+  // The ten axes: the normal, then per edge its cross products with the x, y and z axes.
+  double x[10], y[10], z[10];
+  x[0] = e[0][1] * e[1][2] - e[0][2] * e[1][1];
+  y[0] = e[0][2] * e[1][0] - e[0][0] * e[1][2];
+  z[0] = e[0][0] * e[1][1] - e[0][1] * e[1][0];
+  for (int n = 0; n < 3; ++n) {
+    const double* edge = e[n];
+    x[1 + 3 * n] = 0, y[1 + 3 * n] = -edge[2], z[1 + 3 * n] = edge[1];
+    x[2 + 3 * n] = edge[2], y[2 + 3 * n] = 0, z[2 + 3 * n] = -edge[0];
+    x[3 + 3 * n] = -edge[1], y[3 + 3 * n] = edge[0], z[3 + 3 * n] = 0;
+  }
+  // Every axis's gap first, with no branch between them, so that the compiler can compute several at once;
+  // then the axes in order, each normalized only when it can raise the bound. Each value is the same
+  // expression as computed one axis at a time, so the bound is the same.
+  double gap[10], length_squared[10];
+  for (int k = 0; k < 10; ++k) {
+    const double p0 = x[k] * v[0][0] + y[k] * v[0][1] + z[k] * v[0][2];
+    const double p1 = x[k] * v[1][0] + y[k] * v[1][1] + z[k] * v[1][2];
+    const double p2 = x[k] * v[2][0] + y[k] * v[2][1] + z[k] * v[2][2];
+    const double radius = half * (std::abs(x[k]) + std::abs(y[k]) + std::abs(z[k]));
+    gap[k] = std::max(std::min(std::min(p0, p1), p2) - radius, -std::max(std::max(p0, p1), p2) - radius);
+    length_squared[k] = x[k] * x[k] + y[k] * y[k] + z[k] * z[k];
+  }
+  double bound = std::max(at_least, 0.0);
+  for (int k = 0; k < 10; ++k) {
+    if (!(gap[k] > 0)) continue;
+    if (!(gap[k] * gap[k] > bound * bound * length_squared[k])) continue;
+    const double length = std::sqrt(length_squared[k]);
+    if (!(length > 1e-300)) continue;
+    bound = std::max(bound, gap[k] / length);
   }
   return bound;
 }

@@ -322,11 +322,67 @@ void fillBlock(PointListCache& cache, const MeshModel& geometry, std::uint32_t b
   block[84] = std::numeric_limits<double>::quiet_NaN();
 }
 
+// A sliver's three half-spaces for the prism bound (PointBoundLanes::passingPrism): its plane is zero there,
+// so the bound is the largest of m . p - o over the three, each a valid bound on its own for a unit m with
+// the triangle in m . x <= o. Along its longest edge both ways (beyond its ends), and across that edge's
+// line towards `towards` (the point whose scan lays the block out: the list's next points lie near it).
+// Written to lane k of the edge lanes, offsets with the slack of fillEdges; a zero direction (a point on
+// the line, a triangle of one point) bounds nothing.
+void sliverHalfSpaces(double* block, int k, const std::array<Vec, 3>& v, const Vec& towards) {
+  int longest = 0;
+  double longest_squared = -1;
+  for (int e = 0; e < 3; ++e) {
+    const double squared = (v[(e + 1) % 3] - v[e]).squaredNorm();
+    if (squared > longest_squared) longest_squared = squared, longest = e;
+  }
+  const Vec& a = v[longest];
+  const Vec u = v[(longest + 1) % 3] - a;
+  Vec across = towards - a;
+  if (longest_squared > 0) across -= (across.dot(u) / longest_squared) * u;
+  const double across_length = across.norm();
+  const double u_length = std::sqrt(longest_squared);
+  const Vec directions[3] = {u_length > 0 ? Vec(u / u_length) : Vec::Zero(),
+                             u_length > 0 ? Vec(-u / u_length) : Vec::Zero(),
+                             across_length > 0 ? Vec(across / across_length) : Vec::Zero()};
+  const double radius = block[16 + k];
+  for (int e = 0; e < 3; ++e) {
+    const Vec& m = directions[e];
+    const double offset = std::max({m.dot(v[0]), m.dot(v[1]), m.dot(v[2])});
+    double* edge = block + 36 + 16 * e;
+    edge[k] = m.x();
+    edge[4 + k] = m.y();
+    edge[8 + k] = m.z();
+    edge[12 + k] = offset + 1e-13 * (radius + std::abs(offset));
+  }
+}
+
+// The edge lanes of a sliver that has a plane (unit `normal`, accurate to a few ulps: MeshModel::planes):
+// each edge's outward normal within that plane, across the edge and that normal, so orthogonal to it up to
+// rounding, as the prism bound needs; the plain ab x ac of a sliver is too far off for that. Each offset is
+// the largest over the three corners, so that the triangle lies behind the line whatever the rounding of
+// the corner opposite a long edge.
+void sliverEdgeNormals(double* block, int k, const std::array<Vec, 3>& v, const Vec& normal) {
+  const double radius = block[16 + k];
+  for (int e = 0; e < 3; ++e) {
+    const Vec m = (v[(e + 1) % 3] - v[e]).cross(normal);
+    const double length = m.norm();
+    const Vec unit_m = length > 0 ? Vec(m / length) : Vec::Zero();
+    const double offset = std::max({unit_m.dot(v[0]), unit_m.dot(v[1]), unit_m.dot(v[2])});
+    double* edge = block + 36 + 16 * e;
+    edge[k] = unit_m.x();
+    edge[4 + k] = unit_m.y();
+    edge[8 + k] = unit_m.z();
+    edge[12 + k] = offset + 1e-13 * (radius + std::abs(offset));
+  }
+}
+
 // Lays out the prism bound's lanes of a cached block (PointListCache, PointBoundLanes::passingPrism): the
-// edges' outward normals within the plane of ab x ac, zero for a sliver (kFastSin2, as the kernels), where
-// that normal is too inaccurate for the bound's orthogonality; each offset, and the plane's, with the
-// slack's part that depends on the triangle (see PointBoundLanes::passing).
-void fillEdges(double* block, const std::int32_t* ids, const MeshModel& geometry) {
+// edges' outward normals within the plane of ab x ac, and for a sliver (kFastSin2, as the kernels), where
+// that normal is too inaccurate for the bound's orthogonality, those within its accurate plane
+// (sliverEdgeNormals), or without a plane the half-spaces of sliverHalfSpaces about p, the point being
+// queried; each offset, and the plane's, with the slack's part that depends on the triangle (see
+// PointBoundLanes::passing).
+void fillEdges(double* block, const std::int32_t* ids, const MeshModel& geometry, const Vec& p) {
   const auto& corners = geometry.corners;
   const std::array<Vec, 3>* const triangles[4] = {&corners[ids[0]], &corners[ids[1]], &corners[ids[2]],
                                                   &corners[ids[3]]};
@@ -360,6 +416,18 @@ void fillEdges(double* block, const std::int32_t* ids, const MeshModel& geometry
   }
   _mm256_storeu_pd(block + 84,
                    _mm256_mul_pd(unit, _mm256_add_pd(radius, _mm256_andnot_pd(sign_bit, _mm256_loadu_pd(block + 32)))));
+  int slivers = ~_mm256_movemask_pd(shaped) & 0xf;
+  while (slivers != 0) {
+    const int k = __builtin_ctz(unsigned(slivers));
+    slivers &= slivers - 1;
+    const Vec normal(block[20 + k], block[24 + k], block[28 + k]);
+    if (normal.isZero()) {
+      // No plane (MeshModel::planes): the height is zero and the half-spaces bound alone.
+      sliverHalfSpaces(block, k, *triangles[k], p);
+    } else {
+      sliverEdgeNormals(block, k, *triangles[k], normal);
+    }
+  }
 }
 
 }  // namespace
@@ -398,7 +466,7 @@ void scanPointListCached(const Vec& p, PointListCache& list, const MeshModel& ge
         pass = lanes.passing(center, _mm256_loadu_pd(block + 16), normal, _mm256_loadu_pd(block + 32), best) &
                ((1 << count) - 1);
         if (pass != 0) {
-          fillEdges(block, ids, geometry);
+          fillEdges(block, ids, geometry, p);
           pass &= lanes.passingPrism(block, best_squared);
         }
       }

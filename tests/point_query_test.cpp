@@ -67,8 +67,40 @@ double bruteForceSquared(const MeshModel& geometry, const Eigen::Vector3d& p_M) 
   return best;
 }
 
+// A long, narrow, slightly twisted strip of fans of slivers, as a turbine blade's tessellation: each
+// triangle spans the strip's length from one short edge, down to a height of 1e-13 of its length (those get
+// no plane, MeshModel::planes), and below it a second strip, so that points see slivers on both sides.
+TriangleMesh makeSliverStrip() {
+  TriangleMesh mesh;
+  const int n = 24;
+  const double length = 40, width = 1;
+  for (int sheet = 0; sheet < 2; ++sheet) {
+    const double z = sheet == 0 ? 0.0 : -0.3;
+    const int base = int(mesh.vertices.size());
+    for (int i = 0; i <= n; ++i) {
+      const double x = width * i / n;
+      const double twist = 0.02 * x * x;
+      mesh.vertices.push_back(Eigen::Vector3d(x, 0, z + twist));
+      mesh.vertices.push_back(Eigen::Vector3d(x, length, z - twist));
+    }
+    for (int i = 0; i < n; ++i) {
+      const int a = base + 2 * i, b = a + 2, c = a + 1, d = a + 3;
+      mesh.triangles.push_back({a, b, c});
+      mesh.triangles.push_back({b, d, c});
+    }
+    // Slivers thinner than any plane: a corner 1e-13 of the length off the long edge.
+    const int e = int(mesh.vertices.size());
+    mesh.vertices.push_back(Eigen::Vector3d(width + 0.5, 0, z));
+    mesh.vertices.push_back(Eigen::Vector3d(width + 0.5, length, z));
+    mesh.vertices.push_back(Eigen::Vector3d(width + 0.5 + 1e-13 * length, 0.5 * length, z));
+    mesh.triangles.push_back({e, e + 1, e + 2});
+  }
+  return mesh;
+}
+
 std::vector<NamedMesh> unsignedMeshes() {
   return {
+      {"sliver strip", makeSliverStrip()},
       {"sphere", test::makeSphere()},
       {"knot", test::makeTorusKnot(2, 3, 1.0, 0.3, 48, 6)},
       {"cube soup", test::toSoup(unitCube())},
@@ -306,6 +338,41 @@ TEST(PointQuery, BatchEqualsSerialBitForBit) {
         ASSERT_EQ(batch[i].triangle, serial[i].triangle) << i;
         ASSERT_EQ(batch[i].closest_point, serial[i].closest_point) << i;
         ASSERT_EQ(batch[i].gradient, serial[i].gradient) << i;
+      }
+    }
+  }
+}
+
+// The batch's cached list scan bounds slivers by half-spaces of their own (edge normals within the accurate
+// plane, or, without a plane, along and across the longest edge): on fans of slivers, every answer must be the
+// brute force's and the serial call's, bit for bit, near the strips and in the box about them.
+TEST(PointQuery, BatchOnSliversMatchesBruteForceAndSerial) {
+  test::Rng rng(23);
+  const CflModel model = buildCflModel(makeSliverStrip());
+  const double size = model.geometry.bounds.diagonal();
+  for (int pose = 0; pose < 3; ++pose) {
+    const Eigen::Isometry3d X_WM = pose == 0 ? Eigen::Isometry3d::Identity() : test::randomPose(rng, 5.0);
+    std::vector<Eigen::Vector3d> points;
+    for (const Eigen::Vector3d& p_M : samplePoints(model, 4000, rng)) points.push_back(X_WM * p_M);
+    for (int i = 0; i < 4000; ++i) {
+      // Clusters just above the strips: consecutive points share leaves, the cached scan's case.
+      const auto& t = model.geometry.mesh.triangles[std::size_t(i / 40) % model.geometry.mesh.triangles.size()];
+      const Eigen::Vector3d on = model.geometry.mesh.vertices[t[0]] * 0.5 + model.geometry.mesh.vertices[t[2]] * 0.5;
+      points.push_back(X_WM * (on + 0.01 * size * Eigen::Vector3d::Random()));
+    }
+    for (int threads : {1, 2}) {
+      PointQueryOptions options;
+      options.threads = threads;
+      std::vector<PointDistance> batch(points.size());
+      computePointDistances(model, X_WM, points.data(), points.size(), batch.data(), options);
+      for (std::size_t i = 0; i < points.size(); ++i) {
+        const Eigen::Vector3d p_M = X_WM.inverse(Eigen::Isometry) * points[i];
+        const double expected = std::sqrt(bruteForceSquared(model.geometry, p_M));
+        ASSERT_NEAR(batch[i].distance, expected, 1e-12 * (size + expected)) << i << " p_M " << p_M.transpose();
+        const PointDistance serial = computePointDistance(model, X_WM, points[i], options);
+        ASSERT_EQ(std::memcmp(&batch[i].distance, &serial.distance, sizeof(double)), 0) << i;
+        ASSERT_EQ(batch[i].triangle, serial.triangle) << i;
+        ASSERT_EQ(batch[i].closest_point, serial.closest_point) << i;
       }
     }
   }

@@ -245,8 +245,8 @@ struct PointListScan {
 /// and planes as contiguous lanes instead of gathering them by triangle id. Blocks of four entries, each
 /// kBlock doubles: the squared entry bounds, then the spheres' x, y, z and radius, then the planes' x, y, z
 /// and offset, then for each edge of the triangle (ab, bc, ca) its outward normal in the triangle's plane
-/// (unit; zero for a sliver) x, y, z and offset (plus rounding slack), then the plane's rounding slack, four
-/// lanes each. The last block is padded with infinite
+/// (unit; for a sliver, in its accurate plane, or without a plane three half-spaces of its own) x, y, z and
+/// offset (plus rounding slack), then the plane's rounding slack, four lanes each. The last block is padded with infinite
 /// bounds, which end every scan. Blocks are laid out as scans first reach them (`filled` so far): most scans
 /// end well before the list does.
 struct PointListCache {

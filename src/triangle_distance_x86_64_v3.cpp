@@ -322,6 +322,17 @@ void fillBlock(PointListCache& cache, const MeshModel& geometry, std::uint32_t b
   block[84] = std::numeric_limits<double>::quiet_NaN();
 }
 
+// Lane k of edge lane set e of a cached block: the unit direction m and the largest of the three corners'
+// offsets along it, with the slack that depends on the triangle (see PointBoundLanes::passing).
+void setSliverEdgeLane(double* block, int k, int e, const Vec& m, const std::array<Vec, 3>& v) {
+  const double offset = std::max({m.dot(v[0]), m.dot(v[1]), m.dot(v[2])});
+  double* edge = block + 36 + 16 * e;
+  edge[k] = m.x();
+  edge[4 + k] = m.y();
+  edge[8 + k] = m.z();
+  edge[12 + k] = offset + 1e-13 * (block[16 + k] + std::abs(offset));
+}
+
 // A sliver's three half-spaces for the prism bound (PointBoundLanes::passingPrism): its plane is zero there,
 // so the bound is the largest of m . p - o over the three, each a valid bound on its own for a unit m with
 // the triangle in m . x <= o. Along its longest edge both ways (beyond its ends), and across that edge's
@@ -344,16 +355,7 @@ void sliverHalfSpaces(double* block, int k, const std::array<Vec, 3>& v, const V
   const Vec directions[3] = {u_length > 0 ? Vec(u / u_length) : Vec::Zero(),
                              u_length > 0 ? Vec(-u / u_length) : Vec::Zero(),
                              across_length > 0 ? Vec(across / across_length) : Vec::Zero()};
-  const double radius = block[16 + k];
-  for (int e = 0; e < 3; ++e) {
-    const Vec& m = directions[e];
-    const double offset = std::max({m.dot(v[0]), m.dot(v[1]), m.dot(v[2])});
-    double* edge = block + 36 + 16 * e;
-    edge[k] = m.x();
-    edge[4 + k] = m.y();
-    edge[8 + k] = m.z();
-    edge[12 + k] = offset + 1e-13 * (radius + std::abs(offset));
-  }
+  for (int e = 0; e < 3; ++e) setSliverEdgeLane(block, k, e, directions[e], v);
 }
 
 // The edge lanes of a sliver that has a plane (unit `normal`, accurate to a few ulps: MeshModel::planes):
@@ -362,17 +364,10 @@ void sliverHalfSpaces(double* block, int k, const std::array<Vec, 3>& v, const V
 // the largest over the three corners, so that the triangle lies behind the line whatever the rounding of
 // the corner opposite a long edge.
 void sliverEdgeNormals(double* block, int k, const std::array<Vec, 3>& v, const Vec& normal) {
-  const double radius = block[16 + k];
   for (int e = 0; e < 3; ++e) {
     const Vec m = (v[(e + 1) % 3] - v[e]).cross(normal);
     const double length = m.norm();
-    const Vec unit_m = length > 0 ? Vec(m / length) : Vec::Zero();
-    const double offset = std::max({unit_m.dot(v[0]), unit_m.dot(v[1]), unit_m.dot(v[2])});
-    double* edge = block + 36 + 16 * e;
-    edge[k] = unit_m.x();
-    edge[4 + k] = unit_m.y();
-    edge[8 + k] = unit_m.z();
-    edge[12 + k] = offset + 1e-13 * (radius + std::abs(offset));
+    setSliverEdgeLane(block, k, e, length > 0 ? Vec(m / length) : Vec::Zero(), v);
   }
 }
 

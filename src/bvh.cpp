@@ -91,11 +91,14 @@ double surfaceArea(const Aabb& box) {
 }
 
 // The bin of a centroid coordinate `x` along `axis` of `centroid_box` (whose extent there is positive):
-// the binning and the partition that follows it must compute it the same way.
+// the binning and the partition that follows it must compute it the same way. Clamped in double before
+// the conversion: near the largest doubles the extent overflows and the position comes out infinite or NaN
+// (NaN goes to bin 0; with every centroid in one bin the median split is taken).
 int binOf(double x, const Aabb& centroid_box, int axis) {
   const double extent = centroid_box.max[axis] - centroid_box.min[axis];
-  const int bin = static_cast<int>((x - centroid_box.min[axis]) * (kSahBins / extent));
-  return std::min(kSahBins - 1, std::max(0, bin));
+  const double position = (x - centroid_box.min[axis]) * (kSahBins / extent);
+  if (!(position > 0)) return 0;
+  return position < kSahBins - 1 ? static_cast<int>(position) : kSahBins - 1;
 }
 
 struct SahSplit {

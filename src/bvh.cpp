@@ -199,20 +199,30 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
     // of the oriented box: principal axes of the vertices (duplicates counted, which is harmless: any
     // orthonormal axes give a true box, these just tend to give a tight one).
     const Eigen::Vector3d center = box.center();
+    // The scatter is gathered in units of a power of two near the node's extent: squared offsets of
+    // triangles around 1e-200 units would underflow to denormals, on which the solver returns zero
+    // eigenvectors, and a power of two scales exactly, so ordinary meshes get the same axes bit for bit.
+    int extent_exponent = 0;
+    const double extent = box.size().maxCoeff();
+    if (extent > 0 && std::isfinite(extent)) std::frexp(extent, &extent_exponent);
+    const double scatter_unit = std::ldexp(1.0, -std::clamp(extent_exponent, -1000, 1000));
     double radius_squared = 0;
     Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
     for (int i = range.begin; i < range.end; ++i) {
       for (int index : mesh.triangles[bvh.triangle_ids[i]]) {
         const Eigen::Vector3d offset = mesh.vertices[index] - center;
         radius_squared = std::max(radius_squared, offset.squaredNorm());
-        scatter += offset * offset.transpose();
+        const Eigen::Vector3d scaled = scatter_unit * offset;
+        scatter += scaled * scaled.transpose();
       }
     }
     Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
     if (scatter.allFinite()) {
       const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
-      // Re-orthonormalized so that the box stays a true bound whatever the solver's rounding.
-      if (solver.info() == Eigen::Success && solver.eigenvectors().allFinite()) {
+      // Re-orthonormalized so that the box stays a true bound whatever the solver's rounding; a first
+      // column far from unit length (the solver failing quietly) keeps the identity.
+      if (solver.info() == Eigen::Success && solver.eigenvectors().allFinite() &&
+          solver.eigenvectors().col(0).norm() > 0.5) {
         const Eigen::Vector3d first = solver.eigenvectors().col(0).normalized();
         Eigen::Vector3d second = solver.eigenvectors().col(1) - first * first.dot(solver.eigenvectors().col(1));
         if (first.allFinite() && second.norm() > 0.5) {
@@ -258,7 +268,8 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
       // projections (of coordinates that large) never makes the box miss a vertex, flat patches included.
       const Eigen::Vector3d middle = 0.5 * (low + high);
       node.obb_center = axes * middle;
-      const double slack = 1e-12 * (center.norm() + node.radius) + 1e-300;
+      // Measured without squares, which underflow for nodes of triangles around 1e-160 units and less.
+      const double slack = 1e-12 * (center.cwiseAbs().maxCoeff() + extent) + 1e-300;
       node.obb_half = (0.5 * (high - low)).array() + slack;
       node.subtree_first = range.begin;
       node.subtree_count = range.end - range.begin;

@@ -37,6 +37,13 @@ void validateMesh(const TriangleMesh& mesh) {
       }
     }
   }
+  const double diagonal = boundingBox(mesh).size().stableNorm();  // norm() would underflow to 0 here
+  if (diagonal > 0 && !(diagonal >= kMinDiagonal)) {
+    std::ostringstream message;
+    message << "the mesh is " << diagonal << " units across (its bounding box's diagonal), below " << kMinDiagonal
+            << ": the squared lengths the distance kernels take would underflow; express it in larger units";
+    throw Error(message.str());
+  }
 }
 
 Aabb boundingBox(const TriangleMesh& mesh) {

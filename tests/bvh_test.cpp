@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,12 @@ TriangleMesh unevenSoup() {
   mesh.vertices.insert(mesh.vertices.end(), huge.vertices.begin(), huge.vertices.end());
   for (auto tri : huge.triangles) mesh.triangles.push_back({tri[0] + offset, tri[1] + offset, tri[2] + offset});
   return mesh;
+}
+
+std::string scientific(double x) {
+  std::ostringstream out;
+  out << x;
+  return out.str();
 }
 
 std::vector<NamedMesh> testMeshes() {
@@ -198,14 +205,31 @@ TEST(Bvh, SpheresAreNoLargerThanTheBoxCenteredOneAndWithinJungsBound) {
 // moves coordinates (far from the origin) and where float has no finite value for them (past 3.4e38, which
 // validateMesh allows).
 TEST(Bvh, FloatBoxesHoldTheVerticesFarFromTheOriginAndPastFloatRange) {
-  for (const double scale : {1.0, 1e30, 1e45}) {
+  for (const double scale : {1.0, 1e30, 1e45, 1e-40}) {
     for (const double offset : {0.0, 1e7, -3.3e38}) {
       TriangleMesh mesh = test::makeTorus();
       for (Eigen::Vector3d& v : mesh.vertices) v = scale * v + Eigen::Vector3d(offset, 0.5 * offset, 0);
       for (int max_leaf_size : {1, 8}) {
         checkInvariants(mesh, buildBvh(mesh, max_leaf_size), max_leaf_size,
-                        "scale " + std::to_string(scale) + " offset " + std::to_string(offset));
+                        "scale " + scientific(scale) + " offset " + scientific(offset));
       }
+    }
+  }
+}
+
+// A mesh of ordinary size may hold a few triangles far below its scale (validateMesh bounds only the whole
+// mesh's extent): their nodes' scatter would underflow to denormals, on which the eigensolver returns zero
+// axes, and their squared extents to zero, which left the oriented boxes without slack for rounding.
+TEST(Bvh, OrientedBoxesHoldTrianglesFarBelowTheMeshScale) {
+  for (const double tiny : {1e-150, 1e-170, 1e-200, 1e-250}) {
+    TriangleMesh mesh = test::makeTorus();
+    const TriangleMesh cluster = test::makeTriangleSoup(40, 3, 1.0, 0.3);
+    const int offset = static_cast<int>(mesh.vertices.size());
+    for (const Eigen::Vector3d& v : cluster.vertices) mesh.vertices.push_back(tiny * v);
+    for (auto tri : cluster.triangles) mesh.triangles.push_back({tri[0] + offset, tri[1] + offset, tri[2] + offset});
+    ASSERT_NO_THROW(validateMesh(mesh));
+    for (int max_leaf_size : {1, 4}) {
+      checkInvariants(mesh, buildBvh(mesh, max_leaf_size), max_leaf_size, "tiny " + scientific(tiny));
     }
   }
 }

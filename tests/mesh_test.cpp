@@ -113,6 +113,23 @@ TEST(MeshValidation, CoordinatesBeyondTheSupportedRangeAreRejected) {
   EXPECT_NO_THROW(validateMesh(mesh));
 }
 
+TEST(MeshValidation, MeshesTooSmallForTheKernelsAreRejectedButPointsAreNot) {
+  for (const double scale : {1e-60, 1e-160, 1e-200, 1e-310}) {
+    TriangleMesh mesh = smallMesh();
+    for (Eigen::Vector3d& v : mesh.vertices) v *= scale;
+    SCOPED_TRACE(scale);
+    expectEveryEntryPointRejects(mesh, {"across", "underflow"});
+  }
+  TriangleMesh mesh = smallMesh();
+  const double across = boundingBox(mesh).size().norm();
+  for (Eigen::Vector3d& v : mesh.vertices) v *= 1.001 * kMinDiagonal / across;
+  EXPECT_NO_THROW(validateMesh(mesh));
+  EXPECT_NO_THROW(makeMeshModel(mesh));
+  // Every vertex at one place: a point, whatever its units.
+  for (Eigen::Vector3d& v : mesh.vertices) v = Eigen::Vector3d(1e-300, 0, 0);
+  EXPECT_NO_THROW(validateMesh(mesh));
+}
+
 TEST(MeshValidation, OutOfRangeIndexIsRejectedNamingTriangleAndIndex) {
   TriangleMesh mesh = smallMesh();
   mesh.triangles[11][2] = 900;

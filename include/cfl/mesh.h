@@ -47,8 +47,14 @@ struct TriangleMesh {
 /// no physical unit comes near either end (tests cover meshes scaled by 1e-6 to 1e6).
 constexpr double kMaxCoordinate = 1e50;
 
+/// The smallest nonzero bounding-box diagonal validateMesh accepts. Below it the same products underflow
+/// for the whole mesh, not for a few tiny triangles in it, and answers would be off by a large fraction of
+/// its size. A mesh whose vertices all coincide (diagonal 0) is accepted: it is a point.
+constexpr double kMinDiagonal = 1e-50;
+
 /// Checks that `mesh` can be used: at least one triangle, every vertex coordinate finite and at most
-/// kMaxCoordinate in magnitude, every index in [0, vertices.size()). Throws cfl::Error naming the first
+/// kMaxCoordinate in magnitude, every index in [0, vertices.size()), the bounding box of the vertices the
+/// triangles use 0 or at least kMinDiagonal across. Throws cfl::Error naming the first
 /// defect, e.g. "triangle 12: vertex index 900 is out of range [0, 512)" or "vertex 3 has a non-finite
 /// coordinate (nan, 0, 1)". Degenerate and duplicate triangles are accepted: they are valid geometry (a
 /// segment or a point). O(vertices + triangles).

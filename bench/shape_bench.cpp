@@ -141,8 +141,9 @@ int main(int argc, char** argv) {
     std::vector<Mesh> meshes;
     for (const char* file : {"torus_knot.obj", "rock.obj"}) meshes.push_back(loadScene(dir, file));
 
-    std::printf("cfl_shape_bench: %d poses x %d repeats per row, %s clock, seed %llu\n", poses, repeats,
-                clock_name.c_str(), static_cast<unsigned long long>(seed));
+    std::printf("cfl_shape_bench: %d poses x %d repeats per row, %s clock (less its own %.3f us per sample), seed %llu\n",
+                poses, repeats, clock_name.c_str(), cfl::tool::clockOverheadMicros(clock),
+                static_cast<unsigned long long>(seed));
     std::printf("%-15s %9s %7s %6s %13s %13s %8s %16s\n", "mesh", "triangles", "shape", "range", "FCL OBBRSS us",
                 "CFL adapter us", "speedup", "max|diff|/diag");
     bool agree = true;

@@ -48,7 +48,8 @@ vertex-face contacts of triangles with edges under about 2e-4 units, so meshes t
 Columns, per band:
   dist/diag        median achieved distance / A's bounding-box diagonal
   CFL, OBBRSS, RSS median and 90th percentile of the microseconds per query (each pose timed R times per
-                   method, in --order; the per-pose median enters the statistics)
+                   method, in --order, less the clock's own cost per sample, measured and printed
+                   above the table; the per-pose median enters the statistics)
   OBBRSS/CFL       median OBBRSS time / median CFL time (> 1: CFL is faster)
   CFL N_p, N_v     mean triangle pairs tested and voxel + bounding-volume tests per CFL query
   FCL N_p, N_v     the same for OBBRSS, counted by FCL's own traversal statistics (num_leaf_tests,
@@ -282,10 +283,10 @@ int runBench(const std::vector<std::string>& raw, Streams io) {
     io.out << format("CFL's query kernels: %s\n\n", kernels);
   } else {
     io.out << format("queries: %d poses per band, seed %llu, each timed %d times per method (%s), "
-                     "%s microseconds per query; CFL's query kernels: %s\n\n",
+                     "%s microseconds per query (less the clock's own %.3f us per sample); CFL's query kernels: %s\n\n",
                      queries, static_cast<unsigned long long>(seed), repeats,
                      order == Order::kBlocked ? "blocked: each method on all poses in turn" : "interleaved pose by pose",
-                     clock == Clock::kWall ? "wall" : "thread CPU", kernels);
+                     clock == Clock::kWall ? "wall" : "thread CPU", clockOverheadMicros(clock), kernels);
   }
   if (table) {
     io.out << format("%-7s %9s | %8s %8s | %8s %8s | %8s %8s | %10s | %8s %8s | %8s %8s | %11s\n", "band",

@@ -24,6 +24,20 @@ double nowMicros(Clock clock) {
 
 }  // namespace
 
+double clockOverheadMicros(Clock clock) {
+  auto measure = [](Clock c) {
+    std::vector<double> empty(20001);
+    for (double& sample : empty) {
+      const double start = nowMicros(c);
+      sample = nowMicros(c) - start;
+    }
+    return bench::median(empty);
+  };
+  static const double wall = measure(Clock::kWall);
+  static const double cpu = measure(Clock::kThreadCpu);
+  return clock == Clock::kThreadCpu ? cpu : wall;
+}
+
 std::vector<MethodSamples> timeIndexedMethods(std::size_t count, const std::vector<IndexedMethod>& methods,
                                               int repeats, Clock clock, Order order) {
   const std::size_t m = methods.size();
@@ -39,11 +53,12 @@ std::vector<MethodSamples> timeIndexedMethods(std::size_t count, const std::vect
   const std::size_t slots = order == Order::kBlocked ? count : 1;
   std::vector<std::vector<double>> times(m, std::vector<double>(slots * std::size_t(repeats)));
   for (auto& samples : out) samples.distances.resize(count);
+  const double overhead = clockOverheadMicros(clock);
   auto sample = [&](std::size_t j, std::size_t i, int r) {
     const std::size_t slot = slots == 1 ? 0 : i;
     const double start = nowMicros(clock);
     const double d = methods[j].query(i);
-    times[j][slot * repeats + r] = nowMicros(clock) - start;
+    times[j][slot * repeats + r] = std::max(0.0, nowMicros(clock) - start - overhead);
     if (r == 0) out[j].distances[i] = d;
   };
   auto medianOf = [&](std::size_t j, std::size_t slot) {

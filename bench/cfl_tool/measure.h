@@ -17,7 +17,7 @@ struct TimedMethod {
   std::function<double(const Eigen::Isometry3d& X_WB)> query;
 };
 
-/// Per method: for each pose, the median wall time over the repeats (microseconds) and the distance the
+/// Per method: for each pose, the median time over the repeats (microseconds, in the Clock asked for) and the distance the
 /// first repeat returned.
 struct MethodSamples {
   std::vector<double> micros;
@@ -42,8 +42,14 @@ enum class Order {
   kBlocked,
 };
 
+/// The clock's own share of a sample: the median of many empty samples (two reads back to back).
+/// Reading the thread's CPU clock is a system call, which costs about as much as a short query (a
+/// sphere or box against a mesh); timeMethods subtracts this from every sample so that a ratio compares the
+/// methods, not the clock. Measured once per clock per process; thread-safe.
+double clockOverheadMicros(Clock clock);
+
 /// Times every method on every pose `repeats` times, in `order`; every method first runs twice untimed to
-/// warm caches. One query per sample.
+/// warm caches. One query per sample, less clockOverheadMicros (at least 0).
 std::vector<MethodSamples> timeMethods(const std::vector<Eigen::Isometry3d>& poses,
                                        const std::vector<TimedMethod>& methods, int repeats,
                                        Clock clock = Clock::kWall, Order order = Order::kInterleaved);

@@ -396,9 +396,9 @@ int runSuite(const std::vector<std::string>& raw, Streams io) {
 
   const char* kernels = queryKernelsName(activeQueryKernels());
   io.out << format("cfl suite: %s (%zu case%s), %d poses per band, seed %llu, each timed %d times per method (%s), "
-                   "%s time; CFL's query kernels: %s\n",
+                   "%s time less the clock's own %.3f us per sample; CFL's query kernels: %s\n",
                    manifest.c_str(), cases.size(), cases.size() == 1 ? "" : "s", s.queries, static_cast<unsigned long long>(s.seed), s.repeats,
-                   order_name.c_str(), clock_name.c_str(), kernels);
+                   order_name.c_str(), clock_name.c_str(), clockOverheadMicros(s.clock), kernels);
   io.out.flush();
   std::vector<CaseReport> reports;
   for (std::size_t i = 0; i < cases.size(); ++i) {

@@ -6,6 +6,7 @@
 #include "detail/distance_search.h"
 
 #include "detail/query_kernels.h"
+#include "detail/search_heap.h"
 
 namespace cfl::detail {
 namespace {
@@ -225,10 +226,8 @@ struct Scratch {
                  // <= kFirstTriangleOfB a triangle of B against node node_a of A
     int node_a;  // kAgainstGrid: B's node against A's grid; <= kFirstTriangleOfA: a triangle of A against
                  // B's node; otherwise a node pair of the two Bvhs
-    // std::push_heap keeps the greatest on top; the nearest entry must be the greatest.
-    bool operator<(const HeapEntry& other) const { return key > other.key; }
   };
-  std::vector<HeapEntry> heap;
+  std::vector<HeapEntry> heap;  // a 4-ary min-heap on key (detail/search_heap.h)
   std::vector<std::pair<int, int>> node_pairs;  // computeCollision's pending node pairs
 
   void beginQuery(std::size_t triangle_count) {
@@ -964,8 +963,7 @@ class Search {
       offered[offered_count++] = {searchKey(lower_bound, nodes_b[node_b].radius), node_b, node_a};
     };
     auto push = [&](const Scratch::HeapEntry& entry) CFL_ALWAYS_INLINE {
-      heap.push_back(entry);
-      std::push_heap(heap.begin(), heap.end());
+      heapPush(heap, entry);
     };
     auto offerAgainstGrid = [&](int n) {
       ++counters_.voxel_tests;
@@ -1023,9 +1021,7 @@ class Search {
     while (true) {
       if (!have_entry) {
         if (heap.empty()) break;
-        std::pop_heap(heap.begin(), heap.end());
-        entry = heap.back();
-        heap.pop_back();
+        entry = heapPop(heap);
       }
       have_entry = false;
       // `entry` is the nearest pending one. Distance 0 cannot be beaten.

@@ -1338,6 +1338,32 @@ TEST(ComputeDistance, FarApartBladesMatchBruteForce) {
   EXPECT_EQ(failures.count(), 0);
 }
 
+// The suite's worst case in small: a long flat blade of slivers (a plate 13 times longer than wide,
+// triangles 13 times longer than wide, thinner than they are wide), against itself at every band. Far
+// apart, its nearly tied node pairs keep the search's heap about a thousand entries deep (the 4-ary heap
+// of detail/search_heap.h): any pop out of order ends the search early or prunes the closest pair.
+TEST(ComputeDistance, SliverBladeAgainstItselfAtEveryBandMatchesBruteForce) {
+  TriangleMesh blade = test::makeThinPlate(1.0, 0.65, 16);
+  for (Eigen::Vector3d& v : blade.vertices) {
+    const double span = 65 * (v.y() + 1), twist = 0.004 * span;
+    const double chord = 5 * v.x();
+    v = Eigen::Vector3d(std::cos(twist) * chord - std::sin(twist) * v.z(), span,
+                        std::sin(twist) * chord + std::cos(twist) * v.z());
+  }
+  const auto a = makeShape("sliver_blade", std::move(blade), 0);
+  test::Rng rng(2718);
+  Failures failures;
+  for (double fraction : {0.005, 0.02, 0.1, 0.5, 1.0}) {
+    for (int n = 0; n < 8; ++n) {
+      const Pose pose = makePose(*a, *a, fraction, rng);
+      const DistanceResult truth = bruteForceDistance(a->model, pose.X_WA, a->model, pose.X_WB);
+      checkResult(computeDistance(a->cfl, pose.X_WA, a->model, pose.X_WB), truth, *a, *a, pose, "sliver blade",
+                  failures);
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+}
+
 // B's Bvh leaves that reach past A's grid go on whole as node pairs with A's Bvh (Search::expand), their
 // triangles inside the grid included: flat meshes, slivers among them, at the poses where B straddles the
 // grid's boundary must match brute force.

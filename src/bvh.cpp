@@ -1,11 +1,17 @@
 #include "cfl/bvh.h"
 
+#include "detail/bvh_build.h"
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numeric>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 namespace cfl {
 namespace {
@@ -163,34 +169,23 @@ double medianSplitCost(const std::int32_t* ids, int count, int middle, const std
 
 }  // namespace
 
-Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
-  max_leaf_size = std::max(1, max_leaf_size);
-  const int triangle_count = static_cast<int>(mesh.triangles.size());
-  Bvh bvh;
-  bvh.triangle_ids.resize(triangle_count);
-  std::iota(bvh.triangle_ids.begin(), bvh.triangle_ids.end(), 0);
-  if (triangle_count == 0) return bvh;
+namespace {
 
-  std::vector<Eigen::Vector3d> centroids(triangle_count);
-  std::vector<Aabb> triangle_boxes(triangle_count);
-  for (int t = 0; t < triangle_count; ++t) {
-    const auto& tri = mesh.triangles[t];
-    centroids[t] = (mesh.vertices[tri[0]] + mesh.vertices[tri[1]] + mesh.vertices[tri[2]]) / 3.0;
-    for (int index : tri) triangle_boxes[t].extend(mesh.vertices[index]);
-  }
+// Builds the nodes of one range of Bvh::triangle_ids. Sibling ranges touch disjoint parts of `ids`, so their
+// subtrees may be built at once.
+struct BvhBuilder {
+  const TriangleMesh& mesh;
+  int max_leaf_size;
+  std::vector<std::int32_t>& ids;
+  const std::vector<Eigen::Vector3d>& centroids;
+  const std::vector<Aabb>& triangle_boxes;
 
-  struct Range {
-    int node, begin, end, depth;
-  };
-  bvh.nodes.reserve(2 * triangle_count);
-  bvh.nodes.emplace_back();
-  std::vector<Range> stack{{0, 0, triangle_count, 0}};
-  while (!stack.empty()) {
-    const Range range = stack.back();
-    stack.pop_back();
+  // Fills `node`'s bounds for ids[begin, end) and reorders that range for its split; returns the split
+  // position, or -1 after making `node` a leaf.
+  int fillNode(BvhNode& node, int begin, int end, int depth) const {
     Aabb box, centroid_box;
-    for (int i = range.begin; i < range.end; ++i) {
-      const int t = bvh.triangle_ids[i];
+    for (int i = begin; i < end; ++i) {
+      const int t = ids[i];
       for (int index : mesh.triangles[t]) box.extend(mesh.vertices[index]);
       centroid_box.extend(centroids[t]);
     }
@@ -208,8 +203,8 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
     const double scatter_unit = std::ldexp(1.0, -std::clamp(extent_exponent, -1000, 1000));
     double radius_squared = 0;
     Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-    for (int i = range.begin; i < range.end; ++i) {
-      for (int index : mesh.triangles[bvh.triangle_ids[i]]) {
+    for (int i = begin; i < end; ++i) {
+      for (int index : mesh.triangles[ids[i]]) {
         const Eigen::Vector3d offset = mesh.vertices[index] - center;
         radius_squared = std::max(radius_squared, offset.squaredNorm());
         const Eigen::Vector3d scaled = scatter_unit * offset;
@@ -234,15 +229,14 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
       }
     }
     Eigen::Vector3d low = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), high = -low;
-    for (int i = range.begin; i < range.end; ++i) {
-      for (int index : mesh.triangles[bvh.triangle_ids[i]]) {
+    for (int i = begin; i < end; ++i) {
+      for (int index : mesh.triangles[ids[i]]) {
         const Eigen::Vector3d projection = axes.transpose() * mesh.vertices[index];
         low = low.cwiseMin(projection);
         high = high.cwiseMax(projection);
       }
     }
     {
-      BvhNode& node = bvh.nodes[range.node];
       for (int axis = 0; axis < 3; ++axis) {
         node.box_min[axis] = floatBelow(box.min[axis]);
         node.box_max[axis] = floatAbove(box.max[axis]);
@@ -250,15 +244,14 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
       node.center = center;
       node.radius = std::sqrt(radius_squared);
       auto forEachVertex = [&](const auto& visit) {
-        for (int i = range.begin; i < range.end; ++i) {
-          for (int index : mesh.triangles[bvh.triangle_ids[i]]) visit(mesh.vertices[index]);
+        for (int i = begin; i < end; ++i) {
+          for (int index : mesh.triangles[ids[i]]) visit(mesh.vertices[index]);
         }
       };
       const Eigen::Vector3d refined = enclosingCenter(forEachVertex, center);
       double refined_squared = 0;
-      forEachVertex([&](const Eigen::Vector3d& p) {
-        refined_squared = std::max(refined_squared, (p - refined).squaredNorm());
-      });
+      forEachVertex(
+          [&](const Eigen::Vector3d& p) { refined_squared = std::max(refined_squared, (p - refined).squaredNorm()); });
       if (refined_squared < radius_squared) {
         node.center = refined;
         node.radius = std::sqrt(refined_squared);
@@ -271,41 +264,125 @@ Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
       // Measured without squares, which underflow for nodes of triangles around 1e-160 units and less.
       const double slack = 1e-12 * (center.cwiseAbs().maxCoeff() + extent) + 1e-300;
       node.obb_half = (0.5 * (high - low)).array() + slack;
-      node.subtree_first = range.begin;
-      node.subtree_count = range.end - range.begin;
+      node.subtree_first = begin;
+      node.subtree_count = end - begin;
     }
-    const int count = range.end - range.begin;
+    const int count = end - begin;
     if (count <= max_leaf_size) {
-      bvh.nodes[range.node].first = range.begin;
-      bvh.nodes[range.node].count = count;
-      continue;
+      node.first = begin;
+      node.count = count;
+      return -1;
     }
     int axis = 0;
     centroid_box.size().maxCoeff(&axis);
-    int middle = range.begin + count / 2;
-    std::nth_element(bvh.triangle_ids.begin() + range.begin, bvh.triangle_ids.begin() + middle,
-                     bvh.triangle_ids.begin() + range.end,
+    int middle = begin + count / 2;
+    std::nth_element(ids.begin() + begin, ids.begin() + middle, ids.begin() + end,
                      [&](int x, int y) { return centroids[x][axis] < centroids[y][axis]; });
-    const SahSplit sah = range.depth < kSahDeepest ? bestBinnedSplit(bvh.triangle_ids.data() + range.begin, count,
-                                                                     centroids, triangle_boxes, centroid_box)
-                                                   : SahSplit{};
-    if (sah.axis >= 0 && sah.cost < kSahGain * medianSplitCost(bvh.triangle_ids.data() + range.begin, count,
-                                                              count / 2, triangle_boxes)) {
-      const auto split = std::partition(
-          bvh.triangle_ids.begin() + range.begin, bvh.triangle_ids.begin() + range.end,
-          [&](int t) { return binOf(centroids[t][sah.axis], centroid_box, sah.axis) < sah.bin; });
-      middle = static_cast<int>(split - bvh.triangle_ids.begin());
+    const SahSplit sah = depth < kSahDeepest
+                             ? bestBinnedSplit(ids.data() + begin, count, centroids, triangle_boxes, centroid_box)
+                             : SahSplit{};
+    if (sah.axis >= 0 && sah.cost < kSahGain * medianSplitCost(ids.data() + begin, count, count / 2, triangle_boxes)) {
+      const auto split = std::partition(ids.begin() + begin, ids.begin() + end, [&](int t) {
+        return binOf(centroids[t][sah.axis], centroid_box, sah.axis) < sah.bin;
+      });
+      middle = static_cast<int>(split - ids.begin());
     }
-    const int left = static_cast<int>(bvh.nodes.size());
-    bvh.nodes.emplace_back();
-    bvh.nodes.emplace_back();
-    bvh.nodes[range.node].first = left;
-    bvh.nodes[range.node].count = 0;
-    stack.push_back({left + 1, middle, range.end, range.depth + 1});
-    stack.push_back({left, range.begin, middle, range.depth + 1});
+    return middle;
   }
-  bvh.nodes.shrink_to_fit();  // reserved for leaves of one triangle
+
+  // The subtree of ids[begin, end) below nodes[root], which is allocated: the two children of a node are
+  // appended side by side, and the left child's subtree is finished before the right child's children are
+  // appended (depth first, left first).
+  void buildSerial(std::vector<BvhNode>& nodes, int root, int begin, int end, int depth) const {
+    struct Range {
+      int node, begin, end, depth;
+    };
+    std::vector<Range> stack{{root, begin, end, depth}};
+    while (!stack.empty()) {
+      const Range range = stack.back();
+      stack.pop_back();
+      const int middle = fillNode(nodes[range.node], range.begin, range.end, range.depth);
+      if (middle < 0) continue;
+      const int left = static_cast<int>(nodes.size());
+      nodes.emplace_back();
+      nodes.emplace_back();
+      nodes[range.node].first = left;
+      nodes[range.node].count = 0;
+      stack.push_back({left + 1, middle, range.end, range.depth + 1});
+      stack.push_back({left, range.begin, middle, range.depth + 1});
+    }
+  }
+
+  // The subtree of ids[begin, end), its root first, numbered as buildSerial numbers it: the root, its two
+  // children, the left child's descendants, then the right child's. Ranges of at least `grain` triangles
+  // build their two halves in parallel and splice them.
+  std::vector<BvhNode> build(int begin, int end, int depth, int grain) const {
+    std::vector<BvhNode> nodes(1);
+    if (end - begin < grain) {
+      buildSerial(nodes, 0, begin, end, depth);
+      return nodes;
+    }
+    const int middle = fillNode(nodes[0], begin, end, depth);
+    if (middle < 0) return nodes;
+    std::vector<BvhNode> left, right;
+    tbb::parallel_invoke([&] { left = build(begin, middle, depth + 1, grain); },
+                         [&] { right = build(middle, end, depth + 1, grain); });
+    nodes.reserve(1 + left.size() + right.size());
+    nodes[0].first = 1;
+    nodes[0].count = 0;
+    // Local index i > 0 of the left subtree lands at i + 2, of the right one at i + left.size() + 1.
+    auto place = [&](BvhNode node, int shift) {
+      if (node.count == 0) node.first += shift;
+      nodes.push_back(node);
+    };
+    place(left[0], 2);
+    place(right[0], int(left.size()) + 1);
+    for (std::size_t n = 1; n < left.size(); ++n) place(left[n], 2);
+    for (std::size_t n = 1; n < right.size(); ++n) place(right[n], int(left.size()) + 1);
+    return nodes;
+  }
+};
+
+}  // namespace
+
+namespace detail {
+
+Bvh buildBvhWithGrain(const TriangleMesh& mesh, int max_leaf_size, int parallel_grain) {
+  max_leaf_size = std::max(1, max_leaf_size);
+  const int triangle_count = static_cast<int>(mesh.triangles.size());
+  Bvh bvh;
+  bvh.triangle_ids.resize(triangle_count);
+  std::iota(bvh.triangle_ids.begin(), bvh.triangle_ids.end(), 0);
+  if (triangle_count == 0) return bvh;
+
+  std::vector<Eigen::Vector3d> centroids(triangle_count);
+  std::vector<Aabb> triangle_boxes(triangle_count);
+  tbb::parallel_for(tbb::blocked_range<int>(0, triangle_count, 4096), [&](const tbb::blocked_range<int>& r) {
+    for (int t = r.begin(); t < r.end(); ++t) {
+      const auto& tri = mesh.triangles[t];
+      centroids[t] = (mesh.vertices[tri[0]] + mesh.vertices[tri[1]] + mesh.vertices[tri[2]]) / 3.0;
+      for (int index : tri) triangle_boxes[t].extend(mesh.vertices[index]);
+    }
+  });
+  const BvhBuilder builder{mesh, max_leaf_size, bvh.triangle_ids, centroids, triangle_boxes};
+  if (triangle_count < parallel_grain) {
+    bvh.nodes.reserve(2 * triangle_count);  // for leaves of one triangle
+    bvh.nodes.emplace_back();
+    builder.buildSerial(bvh.nodes, 0, 0, triangle_count, 0);
+    bvh.nodes.shrink_to_fit();
+  } else {
+    bvh.nodes = builder.build(0, triangle_count, 0, std::max(parallel_grain, 2));
+  }
   return bvh;
+}
+
+}  // namespace detail
+
+Bvh buildBvh(const TriangleMesh& mesh, int max_leaf_size) {
+  // Subtrees of fewer triangles than this are built by one thread: large enough that splicing the
+  // subtrees' nodes together costs little next to building them.
+  constexpr int kParallelGrain = 8192;
+  return detail::buildBvhWithGrain(mesh, max_leaf_size, kParallelGrain);
 }
 
 }  // namespace cfl

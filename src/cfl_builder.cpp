@@ -1113,8 +1113,10 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   if (options.memory_limit < 0) {
     throw Error("memory_limit must be >= 0 (0: half of physical memory), got " + std::to_string(options.memory_limit));
   }
+  const int threads = workerCount(options.threads);
+  tbb::task_arena arena(threads);
   CflModel model;
-  model.geometry = makeMeshModel(std::move(mesh));
+  arena.execute([&] { model.geometry = makeMeshModel(std::move(mesh)); });
   const MeshModel& geometry = model.geometry;
   model.padding = options.padding;
   model.topology_culling = options.topology_culling;
@@ -1139,8 +1141,6 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
             << memory_limit << " bytes; " << (adaptive ? "raise memory_limit" : "use a smaller resolution");
     throw Error(message.str());
   }
-  const int threads = workerCount(options.threads);
-  tbb::task_arena arena(threads);
   // The sign analysis is serial and nothing else reads it: one worker runs it while the others go on with
   // the topology, the corners and the cells.
   tbb::task_group sign_task;

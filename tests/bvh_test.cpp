@@ -2,11 +2,15 @@
 // triangles, every node's box and sphere bound everything below it, and its subtree range lists exactly that.
 
 #include "cfl/bvh.h"
+#include "../src/detail/bvh_build.h"
 #include "support/test_meshes.h"
+
+#include <tbb/task_arena.h>
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstring>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -340,6 +344,54 @@ TEST(Bvh, NestedTrianglesOfGeometricSizesKeepTheTreeWithinItsDepthBound) {
     checkInvariants(mesh, bvh, leaf_size, "nested");
     const std::vector<int> depth = leafDepths(bvh);
     EXPECT_LE(*std::max_element(depth.begin(), depth.end()), Bvh::kMaxDepth) << "leaf size " << leaf_size;
+  }
+}
+
+// Every byte of every node (the padding aside) and the leaf order, compared field by field.
+void expectSameBvh(const Bvh& a, const Bvh& b, const std::string& label) {
+  SCOPED_TRACE(label);
+  ASSERT_EQ(a.triangle_ids, b.triangle_ids);
+  ASSERT_EQ(a.nodes.size(), b.nodes.size());
+  for (std::size_t i = 0; i < a.nodes.size(); ++i) {
+    const BvhNode& x = a.nodes[i];
+    const BvhNode& y = b.nodes[i];
+    ASSERT_EQ(x.first, y.first) << "node " << i;
+    ASSERT_EQ(x.count, y.count) << "node " << i;
+    ASSERT_EQ(x.subtree_first, y.subtree_first) << "node " << i;
+    ASSERT_EQ(x.subtree_count, y.subtree_count) << "node " << i;
+    ASSERT_EQ(std::memcmp(x.box_min, y.box_min, sizeof(x.box_min)), 0) << "node " << i;
+    ASSERT_EQ(std::memcmp(x.box_max, y.box_max, sizeof(x.box_max)), 0) << "node " << i;
+    ASSERT_EQ(x.center, y.center) << "node " << i;
+    ASSERT_EQ(x.radius, y.radius) << "node " << i;
+    ASSERT_EQ(x.obb_axes, y.obb_axes) << "node " << i;
+    ASSERT_EQ(x.obb_center, y.obb_center) << "node " << i;
+    ASSERT_EQ(x.obb_half, y.obb_half) << "node " << i;
+  }
+}
+
+// The parallel build splices subtrees built apart; it must number and fill the nodes exactly as the
+// one-thread build does, whatever the grain and the number of threads, or the models built on the Bvh's
+// leaf order would change with the machine.
+TEST(Bvh, ParallelBuildEqualsTheOneThreadBuild) {
+  std::vector<NamedMesh> meshes = testMeshes();
+  meshes.push_back({"big_soup", test::makeTriangleSoup(20000, 11)});
+  for (const NamedMesh& named : meshes) {
+    for (int max_leaf_size : {1, 6}) {
+      const int n = static_cast<int>(named.mesh.triangles.size());
+      const Bvh serial = detail::buildBvhWithGrain(named.mesh, max_leaf_size, n + 1);
+      checkInvariants(named.mesh, serial, max_leaf_size, named.name + " serial");
+      for (int grain : {2, 7, 64, 1000}) {
+        for (int threads : {1, 2, 4}) {
+          tbb::task_arena arena(threads);
+          Bvh parallel;
+          arena.execute([&] { parallel = detail::buildBvhWithGrain(named.mesh, max_leaf_size, grain); });
+          expectSameBvh(serial, parallel,
+                        named.name + " leaf size " + std::to_string(max_leaf_size) + " grain " +
+                            std::to_string(grain) + " threads " + std::to_string(threads));
+        }
+      }
+      expectSameBvh(serial, buildBvh(named.mesh, max_leaf_size), named.name + " buildBvh");
+    }
   }
 }
 

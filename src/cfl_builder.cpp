@@ -4,6 +4,7 @@
 #include "cfl/triangle_distance.h"
 #include "detail/box_triangle_bound.h"
 #include "detail/builder_test_hooks.h"
+#include "detail/hash_id_table.h"
 #include "detail/nearest_triangle.h"
 #include "detail/query_kernels.h"
 
@@ -1258,7 +1259,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   tree.list_entry_ids.reserve(entry_count + 2 * stored_count);
   tree.list_entry_bounds.reserve(entry_count);
   BuildStatistics& stats = model.statistics;
-  std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> lists_by_hash;
+  detail::HashIdTable lists_by_hash = detail::makeHashIdTable(std::size_t(stored_count));
   std::vector<std::uint8_t> list_depth;
   std::int64_t total_length = 0, longest = 0;
   for (std::int64_t r = 0; r < root_count; ++r) {
@@ -1298,24 +1299,21 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       for (std::uint32_t n = 0; n < length; ++n) {
         hash = (hash ^ (std::uint32_t(list[n]) | std::uint64_t(bounds[n]) << 32)) * 1099511628211ull;
       }
-      auto& same_hash = lists_by_hash[hash];
-      std::uint32_t found = std::numeric_limits<std::uint32_t>::max();
-      for (std::uint32_t id : same_hash) {
+      const detail::HashIdProbe probe = detail::findHashId(lists_by_hash, hash, [&](std::uint32_t id) {
         if (tree.listLength(id) != length || list_depth[id] != depth ||
             !std::equal(bounds, bounds + length, tree.list_entry_bounds.begin() + tree.list_offsets[id])) {
-          continue;
+          return false;
         }
-        bool same = true;
-        for (std::uint32_t n = 0; n < length && same; ++n) same = tree.listTriangle(id, n) == list[n];
-        if (same) {
-          found = id;
-          break;
+        for (std::uint32_t n = 0; n < length; ++n) {
+          if (tree.listTriangle(id, n) != list[n]) return false;
         }
-      }
-      if (found == std::numeric_limits<std::uint32_t>::max()) {
+        return true;
+      });
+      std::uint32_t found = probe.id;
+      if (found == detail::kNoHashId) {
         found = tree.appendList(list, bounds, length);
         list_depth.push_back(depth);
-        same_hash.push_back(found);
+        detail::insertHashId(lists_by_hash, probe.slot, hash, found);
       }
       tree.leaf_list.push_back(found);
     }

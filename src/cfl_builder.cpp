@@ -8,8 +8,10 @@
 #include "detail/nearest_triangle.h"
 #include "detail/query_kernels.h"
 
+#include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 #include <tbb/partitioner.h>
 #include <tbb/task_group.h>
 #include <tbb/task_arena.h>
@@ -145,41 +147,74 @@ struct Topology {
 Topology makeTopology(const MeshModel& geometry) {
   const auto& triangles = geometry.mesh.triangles;
   const auto& order = geometry.bvh.triangle_ids;
+  const int count = int(order.size());
+  constexpr int kGrain = 4096;
   // Every edge as (its vertex pair, its triangle's position), sorted: the triangles of one edge side by side,
-  // found by a binary search (a hash map of vectors cost several times more on large meshes).
+  // found by a binary search (a hash map of vectors cost several times more on large meshes). The pairs are
+  // totally ordered, so the parallel sort leaves them as a serial one would.
   auto key = [](int u, int v) { return (std::uint64_t(std::min(u, v)) << 32) | std::uint32_t(std::max(u, v)); };
-  std::vector<std::pair<std::uint64_t, int>> edges;
-  edges.reserve(3 * order.size());
-  for (int n = 0; n < int(order.size()); ++n) {
-    const auto& triangle = triangles[order[n]];
-    for (int e = 0; e < 3; ++e) edges.emplace_back(key(triangle[e], triangle[(e + 1) % 3]), n);
-  }
-  std::sort(edges.begin(), edges.end());
+  std::vector<std::pair<std::uint64_t, int>> edges(3 * order.size());
+  tbb::parallel_for(tbb::blocked_range<int>(0, count, kGrain), [&](const tbb::blocked_range<int>& range) {
+    for (int n = range.begin(); n < range.end(); ++n) {
+      const auto& triangle = triangles[order[n]];
+      for (int e = 0; e < 3; ++e) edges[3 * std::size_t(n) + e] = {key(triangle[e], triangle[(e + 1) % 3]), n};
+    }
+  });
+  tbb::parallel_sort(edges.begin(), edges.end());
   Topology topology;
   topology.triangles.resize(order.size());
-  for (int n = 0; n < int(order.size()); ++n) {
-    const int t = order[n];
-    const auto& c = geometry.corners.in_leaf_order[n];
-    TriangleTopology& entry = topology.triangles[n];
-    const Eigen::Vector3d normal = (c[1] - c[0]).cross(c[2] - c[0]);
-    const double scale =
-        std::max({(c[1] - c[0]).squaredNorm(), (c[2] - c[1]).squaredNorm(), (c[0] - c[2]).squaredNorm()});
-    const bool degenerate = !(normal.norm() > 1e-8 * scale);
-    for (int e = 0; e < 3; ++e) {
-      const int u = triangles[t][e], v = triangles[t][(e + 1) % 3];
-      entry.neighbours[e] = int(topology.edge_neighbours.size());
-      if (degenerate || u == v) continue;
-      Eigen::Vector3d outward = (c[(e + 1) % 3] - c[e]).cross(normal);
-      if (outward.dot(c[(e + 2) % 3] - c[e]) > 0) outward = -outward;
-      entry.outward[e] = outward;
-      const std::uint64_t edge = key(u, v);
-      auto it = std::lower_bound(edges.begin(), edges.end(), std::make_pair(edge, std::numeric_limits<int>::min()));
-      for (; it != edges.end() && it->first == edge; ++it) {
-        if (it->second != n) topology.edge_neighbours.push_back(it->second);
+  // Each edge's run of sorted pairs (its own triangle's among them, or none for an edge that never culls),
+  // then the runs' neighbour counts summed into offsets, then the neighbours copied: the same array as
+  // appending triangle by triangle, built in parallel.
+  std::vector<std::array<std::int32_t, 3>> run_begin(order.size()), run_end(order.size());
+  tbb::parallel_for(tbb::blocked_range<int>(0, count, kGrain), [&](const tbb::blocked_range<int>& range) {
+    for (int n = range.begin(); n < range.end(); ++n) {
+      const int t = order[n];
+      const auto& c = geometry.corners.in_leaf_order[n];
+      TriangleTopology& entry = topology.triangles[n];
+      const Eigen::Vector3d normal = (c[1] - c[0]).cross(c[2] - c[0]);
+      const double scale =
+          std::max({(c[1] - c[0]).squaredNorm(), (c[2] - c[1]).squaredNorm(), (c[0] - c[2]).squaredNorm()});
+      const bool degenerate = !(normal.norm() > 1e-8 * scale);
+      int neighbours = 0;
+      for (int e = 0; e < 3; ++e) {
+        const int u = triangles[t][e], v = triangles[t][(e + 1) % 3];
+        run_begin[n][e] = run_end[n][e] = 0;
+        if (degenerate || u == v) continue;
+        Eigen::Vector3d outward = (c[(e + 1) % 3] - c[e]).cross(normal);
+        if (outward.dot(c[(e + 2) % 3] - c[e]) > 0) outward = -outward;
+        entry.outward[e] = outward;
+        const std::uint64_t edge = key(u, v);
+        auto first = std::lower_bound(edges.begin(), edges.end(), std::make_pair(edge, std::numeric_limits<int>::min()));
+        auto last = first;
+        for (; last != edges.end() && last->first == edge; ++last) neighbours += last->second != n;
+        run_begin[n][e] = std::int32_t(first - edges.begin());
+        run_end[n][e] = std::int32_t(last - edges.begin());
       }
+      entry.neighbours[3] = neighbours;  // for now the count, summed below
     }
-    entry.neighbours[3] = int(topology.edge_neighbours.size());
+  });
+  std::int64_t total = 0;
+  for (TriangleTopology& entry : topology.triangles) {
+    const std::int64_t neighbours = entry.neighbours[3];
+    entry.neighbours[0] = std::int32_t(total);
+    total += neighbours;
   }
+  if (total > std::numeric_limits<std::int32_t>::max()) throw Error("the mesh has too many edge neighbours");
+  topology.edge_neighbours.resize(std::size_t(total));
+  tbb::parallel_for(tbb::blocked_range<int>(0, count, kGrain), [&](const tbb::blocked_range<int>& range) {
+    for (int n = range.begin(); n < range.end(); ++n) {
+      TriangleTopology& entry = topology.triangles[n];
+      std::int32_t next = entry.neighbours[0];
+      for (int e = 0; e < 3; ++e) {
+        entry.neighbours[e] = next;
+        for (std::int32_t i = run_begin[n][e]; i < run_end[n][e]; ++i) {
+          if (edges[i].second != n) topology.edge_neighbours[next++] = edges[i].second;
+        }
+      }
+      entry.neighbours[3] = next;
+    }
+  });
   return topology;
 }
 
@@ -1147,7 +1182,8 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   tbb::task_group sign_task;
   arena.execute([&] { sign_task.run([&] { model.sign = analyzeMeshSign(geometry); }); });
   const TaskGroupWaiter sign_waiter{arena, sign_task};
-  const Topology topology = options.topology_culling ? makeTopology(geometry) : Topology();
+  Topology topology;
+  if (options.topology_culling) arena.execute([&] { topology = makeTopology(geometry); });
   const detail::QueryKernelTable& kernels = detail::activeQueryKernelTable();
   const detail::PointTriangles4 four = kernels.point_triangles4;
   const detail::PointTriangle1 one = kernels.point_triangle;

@@ -690,6 +690,34 @@ void writeValidatedCflModel(const CflModel& model, std::uint64_t payload_size, s
   checkWrittenSize(out.size(), payload_size);
 }
 
+// writeValidatedCflModel for a file, which can be sought: the payload is written once and checksummed on
+// its way out, and the header, written first with a zero checksum, is rewritten once the checksum is known
+// (the same bytes, one pass over the model fewer).
+void writeValidatedCflFile(const CflModel& model, std::uint64_t payload_size, std::ofstream& file) {
+  std::uint64_t written = 0;
+  std::uint32_t payload_crc = 0;
+  const auto put = [&](const unsigned char* data, std::size_t count) {
+    if (!file.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(count))) {
+      throw Error("writing a CFL model: the stream failed after " + std::to_string(written) + " of " +
+                  std::to_string(kHeaderSize + payload_size) + " bytes");
+    }
+    written += count;
+  };
+  std::array<unsigned char, kHeaderSize> header = fileHeader(payload_size, 0);
+  put(header.data(), header.size());
+  const auto checksummed = [&](const unsigned char* data, std::size_t count) {
+    payload_crc = crc32Update(payload_crc, data, count);
+    put(data, count);
+  };
+  Writer<decltype(checksummed)> out(checksummed);
+  writePayload(model, out);
+  checkWrittenSize(out.size(), payload_size);
+  header = fileHeader(payload_size, payload_crc);
+  if (!file.seekp(0)) throw Error("writing a CFL model: cannot seek back to the header");
+  written = 0;
+  put(header.data(), header.size());
+}
+
 }  // namespace
 
 std::vector<unsigned char> serializeCflModel(const CflModel& model) {
@@ -937,7 +965,7 @@ void saveCflModel(const CflModel& model, const std::string& path) {
     if (!file) throw Error(path + ": cannot open " + temporary_path + " for writing: " + std::strerror(errno));
     bool failed = false;
     try {
-      writeValidatedCflModel(model, payload_size, file);
+      writeValidatedCflFile(model, payload_size, file);
       file.close();
       failed = !file;
     } catch (const Error&) {

@@ -528,6 +528,20 @@ TEST(CflFile, StreamWriteFailureIsReportedAndLeavesAFileTheLoaderRefuses) {
   }
 }
 
+// saveCflModel writes its payload once and rewrites the header with the checksum; the file must hold the
+// very bytes serializeCflModel (two passes, no seeking) makes, header checksums included.
+TEST(CflFile, SavedFileHoldsTheSerializedBytes) {
+  const CflModel bunny = build(test::loadBunny(), 0);
+  const std::string path = temporaryPath("cfl_file_test_saved_bytes");
+  for (const CflModel* model : {&smallModel(), &adaptiveModel(), &bunny}) {
+    saveCflModel(*model, path);
+    std::ifstream file(path, std::ios::binary);
+    const Bytes saved((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(saved, serializeCflModel(*model));
+  }
+  std::filesystem::remove(path);
+}
+
 TEST(CflFile, SaveThenLoadThroughTheFileSystemGivesTheSameModel) {
   const CflModel model = build(test::makeTorusKnot(3, 2, 0.4), 0);
   const std::string path = temporaryPath("cfl_file_test_roundtrip");

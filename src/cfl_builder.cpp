@@ -930,7 +930,20 @@ struct Subtree {
   std::vector<float> lower_bound;
   std::vector<std::array<float, 8>> corner_distance;
   CellListOutput lists;  // the leaves' lists, one after another
+  // listHash of each leaf with a stored list, in leaf order: computed with the subtree, in parallel, for the
+  // serial step that stores each distinct list once.
+  std::vector<std::uint64_t> list_hash;
 };
+
+// The hash by which identical lists (same ids, bounds and depth) are found.
+std::uint64_t listHash(const std::int32_t* list, const std::uint8_t* bounds, std::uint32_t length,
+                       std::uint8_t depth) {
+  std::uint64_t hash = (1469598103934665603ull ^ length ^ std::uint64_t(depth) << 40) * 1099511628211ull;
+  for (std::uint32_t n = 0; n < length; ++n) {
+    hash = (hash ^ (std::uint32_t(list[n]) | std::uint64_t(bounds[n]) << 32)) * 1099511628211ull;
+  }
+  return hash;
+}
 
 // Distance from p to the mesh with its nearest triangle, starting from a triangle near p.
 std::pair<double, int> nearestWithHint(const BuildContext& context, const Eigen::Vector3d& p, int hint) {
@@ -1257,6 +1270,14 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       scratch.lattice_nearest.clear();  // points of other root cells: seldom met again
       builder.build(scratch, tree.origin + tree.root_size * Eigen::Vector3d(i, j, k), tree.root_size, 0, 0.0,
                     corner_distance, corner_triangle, 0, out);
+      std::size_t offset = 0;
+      for (std::size_t leaf = 0; leaf < out.list_length.size(); ++leaf) {
+        const std::uint32_t length = out.list_length[leaf];
+        if (length == RegionTree::kNoList) continue;
+        out.list_hash.push_back(listHash(out.lists.ids.data() + offset, out.lists.bounds.data() + offset, length,
+                                         out.depth[leaf]));
+        offset += length;
+      }
       ++done;
       cell_ticker.tick();
     }, tbb::simple_partitioner());
@@ -1308,7 +1329,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
     };
     tree.nodes[r] = relocate(subtree.nodes[0]);
     for (std::size_t n = 1; n < subtree.nodes.size(); ++n) tree.nodes.push_back(relocate(subtree.nodes[n]));
-    std::size_t offset = 0;
+    std::size_t offset = 0, stored = 0;
     for (std::size_t leaf = 0; leaf < subtree.list_length.size(); ++leaf) {
       const std::int32_t* list = subtree.lists.ids.data() + offset;
       const std::uint8_t* bounds = subtree.lists.bounds.data() + offset;
@@ -1331,10 +1352,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       offset += length;
       total_length += length;
       longest = std::max<std::int64_t>(longest, length);
-      std::uint64_t hash = (1469598103934665603ull ^ length ^ std::uint64_t(depth) << 40) * 1099511628211ull;
-      for (std::uint32_t n = 0; n < length; ++n) {
-        hash = (hash ^ (std::uint32_t(list[n]) | std::uint64_t(bounds[n]) << 32)) * 1099511628211ull;
-      }
+      const std::uint64_t hash = subtree.list_hash[stored++];
       const detail::HashIdProbe probe = detail::findHashId(lists_by_hash, hash, [&](std::uint32_t id) {
         if (tree.listLength(id) != length || list_depth[id] != depth ||
             !std::equal(bounds, bounds + length, tree.list_entry_bounds.begin() + tree.list_offsets[id])) {

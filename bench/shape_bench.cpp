@@ -20,20 +20,18 @@
 #include "cfl/error.h"
 #include "cfl/mesh.h"
 #include "cfl/mesh_io.h"
-#include "cfl/segment_query.h"
 #include "cfl/sphere_query.h"
-#include "cfl/triangle_distance.h"
 #include "cfl_fcl/cfl_geometry.h"
 #include "libfcl_distance.h"
 #include "measure.h"
 #include "pose_generator.h"
+#include "shape_reference.h"
 
 #include <fcl/fcl.h>
 
 #include <time.h>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -94,44 +92,20 @@ Transform placeShape(const Mesh& m, const std::shared_ptr<fcl::CollisionGeometry
   });
 }
 
-// The exact distance by brute force over every triangle, as the reference where FCL's and CFL's answers
-// differ: a sphere's center and a capsule's segment with the exact point- and segment-triangle distances,
-// a box as its 12 triangles against every triangle with the exact triangle kernel (0 where a vertex of the
-// mesh lies inside the box). In the mesh's frame, the shape at X.
-double bruteForceShapeDistance(const Mesh& m, const fcl::CollisionGeometryd& shape, const Eigen::Isometry3d& X) {
-  double best_squared = INFINITY;
+// The shape as the benches' reference takes it (shape_reference.h).
+cfl::bench::FclShape referenceShape(const fcl::CollisionGeometryd& shape) {
+  cfl::bench::FclShape out;
   if (const auto* sphere = dynamic_cast<const fcl::Sphered*>(&shape)) {
-    const Eigen::Vector3d c = X.translation();
-    for (const auto& t : m.mesh.triangles)
-      best_squared = std::min(best_squared, cfl::pointTriangleSquaredDistance(c, m.mesh.vertices[t[0]], m.mesh.vertices[t[1]],
-                                                                             m.mesh.vertices[t[2]]));
-    return std::max(0.0, std::sqrt(best_squared) - sphere->radius);
+    out.radius = sphere->radius;
+  } else if (const auto* capsule = dynamic_cast<const fcl::Capsuled*>(&shape)) {
+    out.kind = cfl::bench::FclShape::Kind::kCapsule;
+    out.radius = capsule->radius;
+    out.length = capsule->lz;
+  } else {
+    out.kind = cfl::bench::FclShape::Kind::kBox;
+    out.sides = dynamic_cast<const fcl::Boxd&>(shape).side;
   }
-  if (const auto* capsule = dynamic_cast<const fcl::Capsuled*>(&shape)) {
-    const Eigen::Vector3d p0 = X * Eigen::Vector3d(0, 0, -0.5 * capsule->lz), p1 = X * Eigen::Vector3d(0, 0, 0.5 * capsule->lz);
-    for (const auto& t : m.mesh.triangles)
-      best_squared = std::min(best_squared, cfl::segmentTriangleSquaredDistance(p0, p1, m.mesh.vertices[t[0]],
-                                                                               m.mesh.vertices[t[1]], m.mesh.vertices[t[2]]));
-    return std::max(0.0, std::sqrt(best_squared) - capsule->radius);
-  }
-  const auto& box = dynamic_cast<const fcl::Boxd&>(shape);
-  const Eigen::Vector3d half = 0.5 * box.side;
-  std::array<Eigen::Vector3d, 8> corner;
-  for (int k = 0; k < 8; ++k)
-    corner[k] = X * Eigen::Vector3d((k & 1) ? half.x() : -half.x(), (k & 2) ? half.y() : -half.y(), (k & 4) ? half.z() : -half.z());
-  static constexpr int kFaces[12][3] = {{0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}, {0, 1, 5}, {0, 5, 4},
-                                        {2, 6, 7}, {2, 7, 3}, {0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}};
-  const Eigen::Isometry3d X_inverse = X.inverse();
-  for (const auto& t : m.mesh.triangles) {
-    const Eigen::Vector3d q[3] = {m.mesh.vertices[t[0]], m.mesh.vertices[t[1]], m.mesh.vertices[t[2]]};
-    for (const Eigen::Vector3d& v : q)
-      if (((X_inverse * v).cwiseAbs() - half).maxCoeff() <= 0) return 0;
-    for (const auto& f : kFaces) {
-      const Eigen::Vector3d p[3] = {corner[f[0]], corner[f[1]], corner[f[2]]};
-      best_squared = std::min(best_squared, cfl::triangleTriangleSquaredDistance(p, q));
-    }
-  }
-  return std::sqrt(best_squared);
+  return out;
 }
 
 double median(std::vector<double> v) {
@@ -225,7 +199,7 @@ int main(int argc, char** argv) {
             worst = std::max(worst, diff);
             if (diff <= 1e-9) continue;
             // They differ: brute force decides which one is off.
-            const double exact = bruteForceShapeDistance(m, *shape, placed[i]);
+            const double exact = cfl::bench::bruteForceShapeDistance(referenceShape(*shape), placed[i], m.mesh);
             const double cfl_error = std::abs(samples[1].distances[i] - exact) / d;
             worst_cfl = std::max(worst_cfl, cfl_error);
             if (cfl_error <= 1e-9) ++fcl_off;

@@ -94,8 +94,9 @@ Extra sections, printed after the table only when asked for:
   --shapes N       a sphere (radius 0.02 diagonals), a capsule (radius 0.01, length 0.05) and a box (0.03 x
                    0.02 x 0.015) at N poses per positive band (--bands, default 0.005,0.02 here), at exact
                    distances: the core's point, segment and box queries against FCL's fcl::distance of the
-                   shape to A's BVHModel<OBBRSS>; agreement to 1e-9 of the diagonal for spheres, 1e-5 for
-                   capsules and boxes (FCL's GJK tolerance). Through the FCL adapter: cfl_shape_bench.
+                   shape to A's BVHModel<OBBRSS>; where they differ by more than 1e-9 of the diagonal
+                   (FCL's GJK tolerance on capsules and boxes), brute force decides ("FCL off" counts FCL's
+                   misses; CFL off fails). Through the FCL adapter: cfl_shape_bench.
   --penetration N  A against itself at N overlapping poses: computePenetration (the bodies' depth,
                    certified to 1e-4 of the diagonal) against fcl::collide with contacts (first contact,
                    every contact); checks each interval's width and witness points. Skipped when A is not

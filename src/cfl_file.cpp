@@ -663,6 +663,18 @@ std::array<unsigned char, kHeaderSize> fileHeader(std::uint64_t payload_size, st
   return header;
 }
 
+// Writes bytes to `stream`, counting them into `written`; when the stream fails, says how far of `total`
+// it got.
+auto streamSink(std::ostream& stream, std::uint64_t& written, std::uint64_t total) {
+  return [&stream, &written, total](const unsigned char* data, std::size_t count) {
+    if (!stream.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(count))) {
+      throw Error("writing a CFL model: the stream failed after " + std::to_string(written) + " of " +
+                  std::to_string(total) + " bytes");
+    }
+    written += count;
+  };
+}
+
 // writeCflModel once the model is validated and its payload sized. The header's payload checksum precedes
 // the payload, so a first pass over the model computes it without writing anything; the second writes the
 // file once, in order, so the stream is never sought (pipes work) and no copy of the file is held.
@@ -676,13 +688,7 @@ void writeValidatedCflModel(const CflModel& model, std::uint64_t payload_size, s
   checkWrittenSize(checksum_pass.size(), payload_size);
 
   std::uint64_t written = 0;
-  const auto put = [&](const unsigned char* data, std::size_t count) {
-    if (!stream.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(count))) {
-      throw Error("writing a CFL model: the stream failed after " + std::to_string(written) + " of " +
-                  std::to_string(kHeaderSize + payload_size) + " bytes");
-    }
-    written += count;
-  };
+  const auto put = streamSink(stream, written, kHeaderSize + payload_size);
   const std::array<unsigned char, kHeaderSize> header = fileHeader(payload_size, payload_crc);
   put(header.data(), header.size());
   Writer<decltype(put)> out(put);
@@ -696,13 +702,7 @@ void writeValidatedCflModel(const CflModel& model, std::uint64_t payload_size, s
 void writeValidatedCflFile(const CflModel& model, std::uint64_t payload_size, std::ofstream& file) {
   std::uint64_t written = 0;
   std::uint32_t payload_crc = 0;
-  const auto put = [&](const unsigned char* data, std::size_t count) {
-    if (!file.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(count))) {
-      throw Error("writing a CFL model: the stream failed after " + std::to_string(written) + " of " +
-                  std::to_string(kHeaderSize + payload_size) + " bytes");
-    }
-    written += count;
-  };
+  const auto put = streamSink(file, written, kHeaderSize + payload_size);
   std::array<unsigned char, kHeaderSize> header = fileHeader(payload_size, 0);
   put(header.data(), header.size());
   const auto checksummed = [&](const unsigned char* data, std::size_t count) {

@@ -13,6 +13,7 @@
 #include <climits>
 #include <cmath>
 #include <functional>
+#include <initializer_list>
 #include <limits>
 #include <memory>
 #include <random>
@@ -1314,6 +1315,21 @@ TEST(ComputeDistance, LevelMeshesOverAGroundPlaneMatchBruteForce) {
   EXPECT_GE(poses, 270);
 }
 
+// A shape against itself at `count` random poses per gap (fractions of its diagonal), each against brute force.
+void expectSelfDistancesMatchBruteForce(const Shape& a, std::initializer_list<double> fractions, int count,
+                                        std::uint64_t seed, const std::string& label) {
+  test::Rng rng(seed);
+  Failures failures;
+  for (double fraction : fractions) {
+    for (int n = 0; n < count; ++n) {
+      const Pose pose = makePose(a, a, fraction, rng);
+      const DistanceResult truth = bruteForceDistance(a.model, pose.X_WA, a.model, pose.X_WB);
+      checkResult(computeDistance(a.cfl, pose.X_WA, a.model, pose.X_WB), truth, a, a, pose, label, failures);
+    }
+  }
+  EXPECT_EQ(failures.count(), 0) << label;
+}
+
 // A long, thin, twisted plate, a turbine blade's shape: far apart, the small node pairs of two such blades
 // are tested behind one bound shared by all their triangle pairs (Search::testFarBlock), and many of those
 // pairs lie within a hair of the closest, so a shared bound that overshot would prune it.
@@ -1324,18 +1340,8 @@ TEST(ComputeDistance, FarApartBladesMatchBruteForce) {
     v = Eigen::Vector3d(along, std::cos(twist) * v.y() - std::sin(twist) * v.z(),
                         std::sin(twist) * v.y() + std::cos(twist) * v.z());
   }
-  const auto a = makeShape("blade", std::move(blade), 0);
-  test::Rng rng(1618);
-  Failures failures;
-  for (double fraction : {0.02, 0.1, 0.3, 0.5, 1.0, 3.0}) {
-    for (int n = 0; n < 12; ++n) {
-      const Pose pose = makePose(*a, *a, fraction, rng);
-      const DistanceResult truth = bruteForceDistance(a->model, pose.X_WA, a->model, pose.X_WB);
-      checkResult(computeDistance(a->cfl, pose.X_WA, a->model, pose.X_WB), truth, *a, *a, pose, "far blades",
-                  failures);
-    }
-  }
-  EXPECT_EQ(failures.count(), 0);
+  expectSelfDistancesMatchBruteForce(*makeShape("blade", std::move(blade), 0), {0.02, 0.1, 0.3, 0.5, 1.0, 3.0}, 12,
+                                     1618, "far blades");
 }
 
 // The suite's worst case in small: a long flat blade of slivers (a plate 13 times longer than wide,
@@ -1350,18 +1356,8 @@ TEST(ComputeDistance, SliverBladeAgainstItselfAtEveryBandMatchesBruteForce) {
     v = Eigen::Vector3d(std::cos(twist) * chord - std::sin(twist) * v.z(), span,
                         std::sin(twist) * chord + std::cos(twist) * v.z());
   }
-  const auto a = makeShape("sliver_blade", std::move(blade), 0);
-  test::Rng rng(2718);
-  Failures failures;
-  for (double fraction : {0.005, 0.02, 0.1, 0.5, 1.0}) {
-    for (int n = 0; n < 8; ++n) {
-      const Pose pose = makePose(*a, *a, fraction, rng);
-      const DistanceResult truth = bruteForceDistance(a->model, pose.X_WA, a->model, pose.X_WB);
-      checkResult(computeDistance(a->cfl, pose.X_WA, a->model, pose.X_WB), truth, *a, *a, pose, "sliver blade",
-                  failures);
-    }
-  }
-  EXPECT_EQ(failures.count(), 0);
+  expectSelfDistancesMatchBruteForce(*makeShape("sliver_blade", std::move(blade), 0), {0.005, 0.02, 0.1, 0.5, 1.0}, 8,
+                                     2718, "sliver blade");
 }
 
 // B's Bvh leaves that reach past A's grid go on whole as node pairs with A's Bvh (Search::expand), their

@@ -11,12 +11,9 @@
 
 namespace cfl::detail {
 
-// Adds `entry`. O(log n).
+// Puts `entry` at `hole` or above it: its ancestors with larger keys move down a level each.
 template <class Entry>
-inline void heapPush(std::vector<Entry>& heap, const Entry& entry) {
-  std::size_t hole = heap.size();
-  heap.push_back(entry);
-  Entry* data = heap.data();
+inline void heapSiftUp(Entry* data, std::size_t hole, const Entry& entry) {
   while (hole > 0) {
     const std::size_t parent = (hole - 1) / 4;
     if (!(entry.key < data[parent].key)) break;
@@ -24,6 +21,13 @@ inline void heapPush(std::vector<Entry>& heap, const Entry& entry) {
     hole = parent;
   }
   data[hole] = entry;
+}
+
+// Adds `entry`. O(log n).
+template <class Entry>
+inline void heapPush(std::vector<Entry>& heap, const Entry& entry) {
+  heap.push_back(entry);
+  heapSiftUp(heap.data(), heap.size() - 1, entry);
 }
 
 // Removes and returns the entry of smallest key. The heap must not be empty. O(log n).
@@ -55,13 +59,7 @@ inline Entry heapPop(std::vector<Entry>& heap) {
     data[hole] = data[least];
     hole = least;
   }
-  while (hole > 0) {
-    const std::size_t parent = (hole - 1) / 4;
-    if (!(last.key < data[parent].key)) break;
-    data[hole] = data[parent];
-    hole = parent;
-  }
-  data[hole] = last;
+  heapSiftUp(data, hole, last);
   return top;
 }
 

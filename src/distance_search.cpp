@@ -7,6 +7,7 @@
 
 #include "detail/query_kernels.h"
 #include "detail/search_heap.h"
+#include "detail/triangle_spine.h"
 
 namespace cfl::detail {
 namespace {
@@ -106,6 +107,7 @@ void validateModelShape(const MeshModel& model, const char* which) {
   check(model.corners.in_leaf_order.size(), "corners.in_leaf_order");
   check(model.leaf_spheres.size(), "leaf_spheres");
   check(model.leaf_planes.size(), "leaf_planes");
+  check(model.spines.size(), "spines");
   if (model.bvh.nodes.empty()) {
     throw Error(std::string(which) + ": MeshModel::bvh has no nodes (build the model with makeMeshModel)");
   }
@@ -295,11 +297,14 @@ class Search {
     Eigen::Vector3d normal;  // zero for a degenerate triangle
     double offset;
     Eigen::Vector3d box_min, box_max;  // of the corners
+    std::uint8_t spine_code;      // MeshModel::spines
+    Eigen::Vector3d spine_offset;  // TriangleSpine::offset, for a sliver only
   };
 
   void prepare(int id, const std::array<Eigen::Vector3d, 3>& corners, const Eigen::Vector4d& sphere,
                const Eigen::Vector4d& plane, PreparedTriangle& out) const {
     out.id = id;
+    out.spine_code = b_.spines[std::size_t(id)];
     transformTriangle(corners, out.corners);
     out.center = X_AB_.apply(sphere.head<3>());
     out.radius = sphere[3];
@@ -307,6 +312,7 @@ class Search {
     out.offset = out.normal.dot(out.corners[0]);
     out.box_min = out.corners[0].cwiseMin(out.corners[1]).cwiseMin(out.corners[2]);
     out.box_max = out.corners[0].cwiseMax(out.corners[1]).cwiseMax(out.corners[2]);
+    if ((out.spine_code & kSliverSpine) != 0) out.spine_offset = triangleSpine(out.corners, out.spine_code & 3).offset;
   }
   void prepare(int t, PreparedTriangle& out) const { prepare(t, b_.corners[t], b_.spheres[t], b_.planes[t], out); }
   void prepareAtLeaf(int n, PreparedTriangle& out) const {
@@ -409,6 +415,17 @@ class Search {
                  s1 = planeOffset(normal_a, plane[3], tb.corners[1]),
                  s2 = planeOffset(normal_a, plane[3], tb.corners[2]);
     if (std::max(std::min({s0, s1, s2}), -std::max({s0, s1, s2})) >= threshold) return false;
+    // The spines (detail/triangle_spine.h): slivers pass every test above, spheres and boxes being loose
+    // around them, and most that the spines do not stop would pass the edge axes too.
+    const std::uint8_t spine_a = mesh_a_.spines[std::size_t(a)];
+    if (((spine_a | tb.spine_code) & kSliverSpine) != 0) {
+      const int edge_b = tb.spine_code & 3;
+      const TriangleSpine spine_b = (tb.spine_code & kSliverSpine) != 0 ? TriangleSpine{edge_b, tb.spine_offset}
+                                                                        : triangleSpine(tb.corners, edge_b);
+      if (spineLowerBound(c.data(), triangleSpine(c.data(), spine_a & 3), tb.corners, spine_b) >= threshold) {
+        return false;
+      }
+    }
     // The edge axes (QueryKernelTable::edge_axes_separate): only the few candidates that pass every other
     // test get there.
     return !kernels_.edge_axes_separate(c.data(), tb.corners, nearestToPlane(t0, t1, t2), nearestToPlane(s0, s1, s2),

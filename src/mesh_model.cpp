@@ -1,6 +1,7 @@
 #include "cfl/mesh_model.h"
 
 #include "detail/exact_arithmetic.h"
+#include "detail/triangle_spine.h"
 
 #include <algorithm>
 #include <cmath>
@@ -98,6 +99,8 @@ MeshModel makeMeshModel(TriangleMesh mesh) {
       model.planes[t].setZero();
     }
   }
+  model.spines.resize(count);
+  for (std::size_t t = 0; t < count; ++t) model.spines[t] = detail::spineCode(corners[t].data());
   model.leaf_spheres.resize(count);
   model.leaf_planes.resize(count);
   for (std::size_t n = 0; n < count; ++n) {

@@ -1360,6 +1360,28 @@ TEST(ComputeDistance, SliverBladeAgainstItselfAtEveryBandMatchesBruteForce) {
                                      2718, "sliver blade");
 }
 
+// A disk triangulated as a fan of slivers around one vertex, as CAD exports cap a cylinder: every sliver's
+// sphere spans half the disk, every Bvh node holds the center, and the builder keeps no list (the Bvh
+// answers everywhere). The spines' bound (detail/triangle_spine.h) prunes most pairs there, and B's pieces
+// over leaves without a list go on as node pairs: at every band, against itself and against a slightly
+// domed fan, the answers must equal brute force.
+TEST(ComputeDistance, SliverFanDisksMatchBruteForce) {
+  auto fan = [](int slivers, double dome) {
+    TriangleMesh mesh;
+    mesh.vertices.push_back(Eigen::Vector3d(0, 0, dome));
+    for (int k = 0; k < slivers; ++k) {
+      const double angle = 2 * M_PI * k / slivers;
+      mesh.vertices.push_back(Eigen::Vector3d(20 * std::cos(angle), 20 * std::sin(angle), 0));
+    }
+    for (int k = 0; k < slivers; ++k) mesh.triangles.push_back({0, 1 + k, 1 + (k + 1) % slivers});
+    return mesh;
+  };
+  expectSelfDistancesMatchBruteForce(*makeShape("fan", fan(500, 0), 0), {0, 0.005, 0.02, 0.1, 0.5, 1.0}, 8, 3141,
+                                     "flat fan");
+  expectSelfDistancesMatchBruteForce(*makeShape("domed fan", fan(400, 0.7), 0), {0.005, 0.02, 0.1, 0.5}, 8, 2718,
+                                     "domed fan");
+}
+
 // B's Bvh leaves that reach past A's grid go on whole as node pairs with A's Bvh (Search::expand), their
 // triangles inside the grid included: flat meshes, slivers among them, at the poses where B straddles the
 // grid's boundary must match brute force.

@@ -382,6 +382,7 @@ TEST(ModelShapeValidation, DistanceQueryRejectsModelsWhoseArraysDisagree) {
       {[](MeshModel& m) { m.corners.leaf_position.pop_back(); }, "corners"},
       {[](MeshModel& m) { m.spheres.clear(); }, "spheres"},
       {[](MeshModel& m) { m.planes.pop_back(); }, "planes"},
+      {[](MeshModel& m) { m.spines.pop_back(); }, "spines"},
       {[](MeshModel& m) { m.bvh.triangle_ids.pop_back(); }, "bvh.triangle_ids"},
       {[](MeshModel& m) { m.bvh.nodes.clear(); }, "bvh has no nodes"},
   };

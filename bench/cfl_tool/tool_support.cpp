@@ -144,13 +144,12 @@ void printStatistics(const CflModel& model, std::ostream& out) {
                 perTriangle(bytesOf(g.mesh.vertices) + bytesOf(g.mesh.triangles)), perTriangle(bytesOf(g.mesh.vertices)),
                 perTriangle(bytesOf(g.mesh.triangles)));
   out << format("  triangle data:     %.1f B/triangle (corners %.1f and their index %.1f, spheres %.1f, planes %.1f; "
-                "spheres and planes in leaf order %.1f)\n",
+                "spheres and planes in leaf order %.1f; spines %.1f)\n",
                 perTriangle(bytesOf(g.corners.in_leaf_order) + bytesOf(g.corners.leaf_position) + bytesOf(g.spheres) +
-                            bytesOf(g.planes) +
-                            bytesOf(g.leaf_spheres) + bytesOf(g.leaf_planes)),
+                            bytesOf(g.planes) + bytesOf(g.leaf_spheres) + bytesOf(g.leaf_planes) + bytesOf(g.spines)),
                 perTriangle(bytesOf(g.corners.in_leaf_order)), perTriangle(bytesOf(g.corners.leaf_position)),
                 perTriangle(bytesOf(g.spheres)), perTriangle(bytesOf(g.planes)),
-                perTriangle(bytesOf(g.leaf_spheres) + bytesOf(g.leaf_planes)));
+                perTriangle(bytesOf(g.leaf_spheres) + bytesOf(g.leaf_planes)), perTriangle(bytesOf(g.spines)));
   out << format("  Bvh:               %.1f B/triangle (%zu nodes of %zu B, triangle ids %.1f)\n",
                 perTriangle(bytesOf(g.bvh.nodes) + bytesOf(g.bvh.triangle_ids)), g.bvh.nodes.size(), sizeof(BvhNode),
                 perTriangle(bytesOf(g.bvh.triangle_ids)));

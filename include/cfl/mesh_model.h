@@ -58,6 +58,10 @@ struct MeshModel {
   /// cache is shared and busy. 64 more bytes per triangle.
   std::vector<Eigen::Vector4d> leaf_spheres;
   std::vector<Eigen::Vector4d> leaf_planes;
+  /// spines[t]: triangle t's longest edge (0: corners 0-1, 1: 1-2, 2: 2-0), plus 4 where the triangle is a
+  /// sliver (its third corner lies within a quarter of that edge's length of it). Slivers' spheres and
+  /// boxes are loose; distance queries bound pairs of them by their longest edges instead.
+  std::vector<std::uint8_t> spines;
   /// bvh.nodes again as CompactBvhNode, same indices and the same float boxes.
   std::vector<CompactBvhNode> compact_nodes;
   Aabb bounds;  ///< Bounds of the vertices that triangles use.

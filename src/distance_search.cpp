@@ -1187,11 +1187,14 @@ class Search {
   }
 
   // Whether a triangle of the subtree below `node` (inside the grid) is too large for the lists of the leaf
-  // at its center (testTriangleAtLeaf's test).
+  // at its center (testTriangleAtLeaf's test), or that leaf keeps no list: each triangle would then walk
+  // A's Bvh alone, bounded by its sphere, where the subtree's node pairs share the walk and prune on
+  // oriented boxes (a disk fanned into slivers keeps no list anywhere).
   bool holdsLargeTriangle(const BvhNode& node) const {
     for (int n = node.subtree_first; n < node.subtree_first + node.subtree_count; ++n) {
       const Eigen::Vector4d& sphere = b_.leaf_spheres[n];
-      if (sphere[3] >= kLargeTriangleCells * locate(X_AB_.apply(sphere.head<3>())).size) return true;
+      const RegionCell& cell = locate(X_AB_.apply(sphere.head<3>()));
+      if (sphere[3] >= kLargeTriangleCells * cell.size || !a_.regions.hasList(cell.leaf)) return true;
     }
     return false;
   }

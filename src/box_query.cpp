@@ -6,6 +6,11 @@
 #include "cfl/error.h"
 #include "cfl/segment_query.h"
 #include "cfl/triangle_distance.h"
+#include "detail/query_kernels.h"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include <algorithm>
 #include <array>
@@ -140,9 +145,9 @@ double separatingGap(const Eigen::Vector3d t[3], const Eigen::Vector3d& n, const
 // the box, a box corner and the triangle, or a box edge and a triangle edge (a face's interior against an
 // edge or a face is matched by one of these at the same distance), each tested only where its bounds can
 // beat the best. Intersecting (every separating gap <= 0), testTriangle finds the common point.
-void testTriangleApart(const Eigen::Vector3d t[3], const Eigen::Vector4d& plane_S, const Eigen::Vector4d& sphere_S,
-                       const Eigen::Vector3d& half, const Eigen::Vector3d corners[8], bool apart, int id,
-                       Best& best) {
+void testTriangleApart(const detail::QueryKernelTable& kernels, const Eigen::Vector3d t[3],
+                       const Eigen::Vector4d& plane_S, const Eigen::Vector4d& sphere_S, const Eigen::Vector3d& half,
+                       const Eigen::Vector3d corners[8], bool apart, int id, Best& best) {
   Eigen::Vector3d on_box;
   for (int k = 0; k < 3; ++k) {
     const double d = pointBoxSquaredDistance(t[k], half, &on_box);
@@ -172,10 +177,17 @@ void testTriangleApart(const Eigen::Vector3d t[3], const Eigen::Vector4d& plane_
   }
   // Bit k of `past(c)`: the triangle reaches past corner c (bit k of c set for +half_k) along axis k.
   auto past = [&](int c) { return (c & beyond_high) | (~c & beyond_low); };
+  // Before each exact distance, the gap between the features' axis-aligned boxes (box frame): most features
+  // that pass the cone tests are still farther than the best.
+  auto boxesApart = [&](const Eigen::Vector3d& min_a, const Eigen::Vector3d& max_a, const Eigen::Vector3d& min_b,
+                        const Eigen::Vector3d& max_b) {
+    return (min_a - max_b).cwiseMax(min_b - max_a).cwiseMax(0.0).squaredNorm() * kGapShrink >= best.squared;
+  };
   for (int c = 0; c < 8; ++c) {
     if (past(c) != 7) continue;
+    if (boxesApart(corners[c], corners[c], lo, hi)) continue;
     Eigen::Vector3d q;
-    const double d = pointTriangleSquaredDistance(corners[c], t[0], t[1], t[2], &q);
+    const double d = kernels.point_triangle(corners[c], t[0], t[1], t[2], &q);
     if (d < best.squared) best = {d, corners[c], q, id};
   }
   // Triangle edges the box reaches past (all of them for a degenerate triangle).
@@ -201,9 +213,11 @@ void testTriangleApart(const Eigen::Vector3d t[3], const Eigen::Vector4d& plane_
       if ((past(c0) & need) != need) continue;
       for (int k = 0; k < 3; ++k) {
         if (!edge_counts[k]) continue;
+        const Eigen::Vector3d& q0 = t[k];
+        const Eigen::Vector3d& q1 = t[(k + 1) % 3];
+        if (boxesApart(corners[c0], corners[c1], q0.cwiseMin(q1), q0.cwiseMax(q1))) continue;
         Eigen::Vector3d on_edge, on_triangle;
-        const double d =
-            segmentSegmentSquaredDistance(corners[c0], corners[c1], t[k], t[(k + 1) % 3], &on_edge, &on_triangle);
+        const double d = kernels.segment_segment(corners[c0], corners[c1], q0, q1, &on_edge, &on_triangle);
         if (d < best.squared) best = {d, on_edge, on_triangle, id};
       }
     }
@@ -212,17 +226,58 @@ void testTriangleApart(const Eigen::Vector3d t[3], const Eigen::Vector4d& plane_
 
 // The box's pose and shape for the tests of one query; triangles come in frame M.
 struct BoxFrame {
+  const detail::QueryKernelTable* kernels;
   Eigen::Isometry3d X_BM;
   Eigen::Vector3d half;
   Eigen::Vector3d corners[8];  // frame B
+  double rotation[3][3], shift[3];  // X_BM's rotation (row-major) and translation, for sphereReach
 };
 
-// Triangle `id` (corners, bounding sphere and plane in frame M) against the box, if its sphere can beat the
-// best so far.
+// The gap from the box to the sphere of center c (frame M) and radius r: the distance from the center to the
+// box, less r. The same operations, in the same order, one sphere at a time or two, so that which spheres
+// a query skips does not depend on how many it bounds at once.
+inline double sphereReach(const BoxFrame& box, const double* c, double r) {
+  double squared = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double* row = box.rotation[k];
+    const double p = row[0] * c[0] + row[1] * c[1] + row[2] * c[2] + box.shift[k];
+    const double d = p - std::min(std::max(p, -box.half[k]), box.half[k]);
+    squared += d * d;
+  }
+  return std::sqrt(squared) - r;
+}
+
+// sphereReach for two spheres: out[0] for (c0, r0), out[1] for (c1, r1). Two lanes share one square root,
+// whose latency the walk otherwise waits for at every node.
+inline void sphereReach2(const BoxFrame& box, const double* c0, double r0, const double* c1, double r1,
+                         double out[2]) {
+#if defined(__SSE2__)
+  const __m128d x = _mm_set_pd(c1[0], c0[0]), y = _mm_set_pd(c1[1], c0[1]), z = _mm_set_pd(c1[2], c0[2]);
+  __m128d squared = _mm_setzero_pd();
+  for (int k = 0; k < 3; ++k) {
+    const double* row = box.rotation[k];
+    const __m128d p =
+        _mm_add_pd(_mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_set1_pd(row[0]), x), _mm_mul_pd(_mm_set1_pd(row[1]), y)),
+                              _mm_mul_pd(_mm_set1_pd(row[2]), z)),
+                   _mm_set1_pd(box.shift[k]));
+    // std::max(p, -h) is p < -h ? -h : p, which _mm_max_pd(-h, p) spells (and std::min likewise).
+    const __m128d h = _mm_set1_pd(box.half[k]);
+    const __m128d clamped = _mm_min_pd(h, _mm_max_pd(_mm_sub_pd(_mm_setzero_pd(), h), p));
+    const __m128d d = _mm_sub_pd(p, clamped);
+    squared = _mm_add_pd(squared, _mm_mul_pd(d, d));
+  }
+  _mm_storeu_pd(out, _mm_sub_pd(_mm_sqrt_pd(squared), _mm_set_pd(r1, r0)));
+#else
+  out[0] = sphereReach(box, c0, r0);
+  out[1] = sphereReach(box, c1, r1);
+#endif
+}
+
+// Triangle `id` (corners, bounding sphere and plane in frame M) against the box, if its sphere, `reach` from
+// the box (sphereReach), can beat the best so far.
 inline void considerTriangle(const BoxFrame& box, const std::array<Eigen::Vector3d, 3>& c,
-                             const Eigen::Vector4d& sphere, const Eigen::Vector4d& plane, int id, Best& best) {
-  const Eigen::Vector3d center_B = box.X_BM * sphere.head<3>();
-  const double reach = std::sqrt(pointBoxSquaredDistance(center_B, box.half, nullptr)) - sphere.w();
+                             const Eigen::Vector4d& sphere, double reach, const Eigen::Vector4d& plane, int id,
+                             Best& best) {
   if (reach > 0 && reach * reach >= best.squared) return;
   const Eigen::Vector3d t[3] = {box.X_BM * c[0], box.X_BM * c[1], box.X_BM * c[2]};
   // The triangle's box against the box, before anything that costs more.
@@ -236,9 +291,9 @@ inline void considerTriangle(const BoxFrame& box, const std::array<Eigen::Vector
   const double plane_gap = std::abs(plane_S.w()) - plane_S.head<3>().cwiseAbs().dot(box.half);
   if (plane_gap > 0 && plane_gap * plane_gap * kGapShrink >= best.squared) return;
   Eigen::Vector4d sphere_S;
-  sphere_S.head<3>() = center_B;
+  sphere_S.head<3>() = box.X_BM * sphere.head<3>();
   sphere_S.w() = sphere.w();
-  testTriangleApart(t, plane_S, sphere_S, box.half, box.corners, box_gap > 0 || plane_gap > 0, id, best);
+  testTriangleApart(*box.kernels, t, plane_S, sphere_S, box.half, box.corners, box_gap > 0 || plane_gap > 0, id, best);
 }
 
 // The exact search over the whole mesh through its Bvh, below best.squared.
@@ -247,9 +302,6 @@ void searchBvh(const MeshModel& mesh, const BoxFrame& box, Best& best) {
   // A node's sphere against the box: its center's distance to the box, minus its radius. (Adding the nodes'
   // axis-aligned boxes against the box's bounds changed nothing measurable in cfl_shape_bench; separating
   // the nodes' oriented boxes from the box along both sets of axes pruned too little for its cost.)
-  auto bound = [&](const BvhNode& node) {
-    return std::sqrt(pointBoxSquaredDistance(box.X_BM * node.center, box.half, nullptr)) - node.radius;
-  };
   struct Pending {
     int node;
     double bound;
@@ -257,7 +309,7 @@ void searchBvh(const MeshModel& mesh, const BoxFrame& box, Best& best) {
   Pending stack[128];
   int top = 0;
   if (!nodes.empty()) {
-    const double root = bound(nodes[0]);
+    const double root = sphereReach(box, nodes[0].center.data(), nodes[0].radius);
     if (!(root > 0 && root * root >= best.squared)) stack[top++] = {0, root};
   }
   while (top > 0) {
@@ -265,14 +317,43 @@ void searchBvh(const MeshModel& mesh, const BoxFrame& box, Best& best) {
     if (pending.bound > 0 && pending.bound * pending.bound >= best.squared) continue;
     const BvhNode& node = nodes[pending.node];
     if (node.isLeaf()) {
-      // A leaf holds several triangles: each is first bounded by its own sphere against the box.
-      for (int i = node.first; i < node.first + node.count; ++i)
-        considerTriangle(box, mesh.corners.in_leaf_order[i], mesh.leaf_spheres[i], mesh.leaf_planes[i],
-                         mesh.bvh.triangle_ids[i], best);
+      // A leaf holds several triangles (a few at a time, kChunk at most): each is first bounded by its own
+      // sphere against the box, two at once, and then tested nearest sphere first, so that the best is
+      // tight before the farther triangles, whose bounds then dismiss them before their exact tests.
+      constexpr int kChunk = 8;
+      const int end = node.first + node.count;
+      for (int first = node.first; first < end; first += kChunk) {
+        const int n = std::min(kChunk, end - first);
+        const Eigen::Vector4d* spheres = &mesh.leaf_spheres[std::size_t(first)];
+        double reach[kChunk];
+        int order[kChunk];
+        for (int j = 0; j < n; j += 2) {
+          if (j + 1 < n)
+            sphereReach2(box, spheres[j].data(), spheres[j].w(), spheres[j + 1].data(), spheres[j + 1].w(),
+                         reach + j);
+          else
+            reach[j] = sphereReach(box, spheres[j].data(), spheres[j].w());
+        }
+        // Insertion sort by reach; equal reaches keep the leaf's order.
+        for (int j = 0; j < n; ++j) {
+          int k = j;
+          for (; k > 0 && reach[order[k - 1]] > reach[j]; --k) order[k] = order[k - 1];
+          order[k] = j;
+        }
+        for (int k = 0; k < n; ++k) {
+          const int j = order[k];
+          const int i = first + j;
+          considerTriangle(box, mesh.corners.in_leaf_order[std::size_t(i)], spheres[j], reach[j],
+                           mesh.leaf_planes[std::size_t(i)], mesh.bvh.triangle_ids[std::size_t(i)], best);
+        }
+      }
       if (best.squared == 0) break;
       continue;
     }
-    const double left = bound(nodes[node.first]), right = bound(nodes[node.first + 1]);
+    const BvhNode &left_node = nodes[node.first], &right_node = nodes[node.first + 1];
+    double reach[2];
+    sphereReach2(box, left_node.center.data(), left_node.radius, right_node.center.data(), right_node.radius, reach);
+    const double left = reach[0], right = reach[1];
     const bool left_first = left <= right;
     const Pending near{left_first ? node.first : node.first + 1, left_first ? left : right};
     const Pending far{left_first ? node.first + 1 : node.first, left_first ? right : left};
@@ -294,8 +375,13 @@ BoxDistance computeBoxDistance(const CflModel& model, const Eigen::Isometry3d& X
   }
   if (!(upper_bound >= 0)) throw Error("computeBoxDistance: upper_bound must be >= 0");
   BoxFrame box;
+  box.kernels = &detail::activeQueryKernelTable();
   box.X_BM = X_WB.inverse() * X_WM;
   box.half = half;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) box.rotation[i][j] = box.X_BM.linear()(i, j);
+    box.shift[i] = box.X_BM.translation()[i];
+  }
   for (int c = 0; c < 8; ++c)
     box.corners[c] =
         Eigen::Vector3d(c & 1 ? half.x() : -half.x(), c & 2 ? half.y() : -half.y(), c & 4 ? half.z() : -half.z());

@@ -4,11 +4,13 @@
 #include "cfl/box_query.h"
 #include "cfl/cfl_query.h"
 #include "cfl/error.h"
+#include "cfl/query_kernels.h"
 #include "support/test_meshes.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <string>
 
@@ -91,6 +93,49 @@ TEST(BoxQuery, EqualsBruteForceOnParallelFacesDegenerateTrianglesAndFarBoxes) {
     EXPECT_GT(apart, 20) << name;
     EXPECT_GT(touching, 3) << name;
   }
+}
+
+// The query takes its exact point-triangle and segment-segment distances from the active kernel build
+// (cfl/query_kernels.h): every build this CPU runs must give the same bits (distance, points, triangle), and
+// the generic one must match brute force, on poses near the mesh where many triangles reach the exact tests.
+TEST(BoxQuery, EveryKernelBuildGivesTheSameBitsAndBruteForcesDistance) {
+  const QueryKernels previous = activeQueryKernels();
+  std::mt19937_64 rng(9);
+  std::normal_distribution<double> gauss;
+  auto same = [](double x, double y) { return std::memcmp(&x, &y, sizeof x) == 0; };
+  auto sameVector = [&](const Eigen::Vector3d& x, const Eigen::Vector3d& y) {
+    return same(x[0], y[0]) && same(x[1], y[1]) && same(x[2], y[2]);
+  };
+  int compared = 0;
+  for (const auto& [name, mesh] : std::vector<std::pair<std::string, TriangleMesh>>{
+           {"knot", test::makeTorusKnot(2, 3, 1.0, 0.3, 64, 6)}, {"bunny", test::loadBunny()}}) {
+    const CflModel model = buildCflModel(mesh);
+    const double size = model.geometry.bounds.diagonal();
+    for (int i = 0; i < 100; ++i) {
+      const Eigen::Isometry3d X_WM = test::randomPose(rng, 1.0);
+      Eigen::Isometry3d X_WB = test::randomPose(rng, 1.0);
+      const Eigen::Vector3d on = test::randomPointOnTriangle(mesh, int(rng() % mesh.triangles.size()), rng);
+      X_WB.translation() = X_WM * on + Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)) * 0.03 * size;
+      const Eigen::Vector3d half = Eigen::Vector3d(0.015, 0.01, 0.0075 + 0.005 * (i % 3)) * size;
+      const std::string at = name + " pose " + std::to_string(i);
+      setQueryKernels(QueryKernels::kGeneric);
+      const BoxDistance generic = computeBoxDistance(model, X_WM, X_WB, half);
+      EXPECT_NEAR(generic.distance, bruteForceBoxDistance(model, mesh, X_WM, X_WB, half), 1e-9 * size) << at;
+      for (const QueryKernels kernels : {QueryKernels::kX86_64_V3}) {
+        if (!queryKernelsAvailable(kernels)) continue;
+        setQueryKernels(kernels);
+        const BoxDistance got = computeBoxDistance(model, X_WM, X_WB, half);
+        EXPECT_TRUE(same(got.distance, generic.distance)) << at << ": " << got.distance << " vs " << generic.distance;
+        EXPECT_TRUE(sameVector(got.box_point, generic.box_point)) << at;
+        EXPECT_TRUE(sameVector(got.mesh_point, generic.mesh_point)) << at;
+        EXPECT_EQ(got.triangle, generic.triangle) << at;
+        ++compared;
+      }
+    }
+  }
+  setQueryKernels(previous);
+  if (!queryKernelsAvailable(QueryKernels::kX86_64_V3)) GTEST_SKIP() << "only the generic build runs here";
+  EXPECT_EQ(compared, 200);
 }
 
 TEST(BoxQuery, BadInputThrowsCflError) {

@@ -84,6 +84,9 @@ struct QueryKernelTable {
   bool (*triangles_intersect)(const Eigen::Vector3d p[3], const Eigen::Vector3d q[3], Eigen::Vector3d* point);
   /// cfl::pointTriangleSquaredDistance.
   PointTriangle1 point_triangle;
+  /// cfl::segmentSegmentSquaredDistance.
+  double (*segment_segment)(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Eigen::Vector3d& q0,
+                            const Eigen::Vector3d& q1, Eigen::Vector3d* closest_p, Eigen::Vector3d* closest_q);
   /// pointTriangleSquaredDistance from p to four triangles at once: squared[k] and closest[k] are bit for bit
   /// what point_triangle(p, (*triangles[k])[0], [1], [2], &closest[k]) returns (PendingTriangleTests).
   PointTriangles4 point_triangles4;

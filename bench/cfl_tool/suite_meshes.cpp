@@ -620,7 +620,8 @@ void generateSuite(const std::string& dir, bool huge, std::ostream& log) {
       {"bolt_vs_assembly", "bolt.obj", "assembly.obj", "the same pair seen from the small part"},
       {"ground_bunny_vs_spider", "ground_bunny.obj", "spider.obj", "a scene against a thin-legged figure"},
       {"fan_disk_vs_bunny", "fan_disk.obj", "bunny.obj", "a fan of slivers against a compact scan"},
-      {"cad_cylinder_vs_bolt", "cad_cylinder.obj", "bolt.obj", "a CAD cylinder against a small part"},
+      {"cad_cylinder_vs_gear", "cad_cylinder.obj", "gear.obj",
+       "a CAD cylinder through a gear (a bolt at its center would sit in the hollow, out of the short bands)"},
       {"pipe_vs_gear", "pipe.obj", "gear.obj", "a long thin pipe against a gear, both with fan caps"},
   };
   if (huge) entries.push_back({"dense_scan_huge", "dense_scan_huge.obj", "", "1,411,200 triangles (--huge only)"});

@@ -42,7 +42,8 @@ constexpr const char* kSuiteUsage = R"(usage: cfl suite --generate DIR [--huge]
 --generate writes the benchmark suite into DIR: meshes of the shapes users bring (a long flat blade, a
 plate with holes, a ground plane with a small object, an assembly of parts 100x apart in size, thin-legged
 and branching figures, a locally refined slab, an open, a non-manifold and a triangle-soup mesh, a
-352,800-triangle scan, the bundled compact meshes) and DIR/manifest.txt, which lists the cases; --huge adds
+352,800-triangle scan, CAD exports whose planar faces are fans of slivers (a disk, a cylinder, a thin pipe,
+a gear), an open terrain, the bundled compact meshes) and DIR/manifest.txt, which lists the cases; --huge adds
 a 1,411,200-triangle scan. Deterministic, no network.
 
 Without --generate, runs every case of DIR/manifest.txt ("NAME MESH_A [MESH_B]" per line: A against

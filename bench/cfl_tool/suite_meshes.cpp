@@ -436,6 +436,72 @@ TriangleMesh denseScan(int scale) {
   return m;
 }
 
+// CAD tessellators (STL exports above all) mesh a planar face bounded by a circle or a profile as a fan of
+// slivers from one vertex: long thin triangles all meeting at a point.
+
+// A flat disk of radius 20 meshed as a fan of 3000 slivers about its center: a cylinder's cap alone, open.
+TriangleMesh fanDisk() {
+  MeshBuilder b;
+  const Ring rim = circle(Vec3::Zero(), Vec3::UnitZ(), 20, 3000);
+  const int c = b.vertex(Vec3::Zero());
+  for (std::size_t k = 0; k < rim.size(); ++k) b.triangle(c, b.vertex(rim[k]), b.vertex(rim[(k + 1) % rim.size()]));
+  return b.take();
+}
+
+// A closed cylinder of radius 5 and height 40 with 256 segments and 20 rings, caps fanned from their
+// centers, as an STL export of a CAD cylinder is.
+TriangleMesh cadCylinder() {
+  MeshBuilder b;
+  cylinder(b, Vec3::Zero(), Vec3(0, 0, 40), 5, 5, 256, 20);
+  return b.take();
+}
+
+// A closed pipe 300 long of radius 0.5, 16 sides and 400 rings, fan caps: a long thin CAD part.
+TriangleMesh longPipe() {
+  MeshBuilder b;
+  cylinder(b, Vec3::Zero(), Vec3(0, 0, 300), 0.5, 0.5, 16, 399);
+  return b.take();
+}
+
+// A 60-tooth gear 22 across extruded 2 thick, each face of the profile fanned from the center.
+TriangleMesh gear() {
+  MeshBuilder b;
+  constexpr int kTeeth = 60;
+  // Per tooth, (fraction of the pitch, radius): root, flank up, tip, flank down.
+  constexpr double kProfile[5][2] = {{0.0, 10}, {0.2, 10}, {0.3, 11}, {0.7, 11}, {0.8, 10}};
+  std::vector<Ring> rings(2);
+  for (int z = 0; z < 2; ++z) {
+    for (int k = 0; k < kTeeth; ++k) {
+      for (const auto& [f, r] : kProfile) {
+        const double t = 2 * kPi * (k + f) / kTeeth;
+        rings[z].push_back(Vec3(r * std::cos(t), r * std::sin(t), 2.0 * z));
+      }
+    }
+  }
+  sweep(b, rings, Vec3::Zero(), Vec3(0, 0, 2));
+  return b.take();
+}
+
+// An open 150 x 150 heightfield 74.5 across, gently wavy with a little noise, as GIS and scanned terrain are.
+TriangleMesh terrain() {
+  MeshBuilder b;
+  constexpr int kN = 150;
+  Random random(7);
+  std::vector<int> ids;
+  for (int i = 0; i < kN; ++i) {
+    for (int j = 0; j < kN; ++j) {
+      const double x = 0.5 * i, y = 0.5 * j;
+      ids.push_back(b.vertex(Vec3(x, y, 2 * std::sin(0.1 * x) * std::cos(0.13 * y) + random.uniform(-0.05, 0.05))));
+    }
+  }
+  for (int i = 0; i + 1 < kN; ++i) {
+    for (int j = 0; j + 1 < kN; ++j) {
+      b.quad(ids[i * kN + j], ids[(i + 1) * kN + j], ids[(i + 1) * kN + j + 1], ids[i * kN + j + 1]);
+    }
+  }
+  return b.take();
+}
+
 // ---- writing ----------------------------------------------------------------------------------------------
 
 void writeObj(const TriangleMesh& mesh, const std::string& path, const std::string& what) {
@@ -520,6 +586,11 @@ void generateSuite(const std::string& dir, bool huge, std::ostream& log) {
     log << format("wrote %-22s %9zu triangles  %s\n", "soup_rock.stl", rock.triangles.size(),
                   "rock.obj as a binary STL soup, no vertex shared");
   }
+  obj("fan_disk.obj", fanDisk(), "disk of radius 20 as a fan of 3000 slivers, open");
+  obj("cad_cylinder.obj", cadCylinder(), "cylinder 10 x 40, 256 segments, fan caps");
+  obj("pipe.obj", longPipe(), "pipe 300 long of radius 0.5, fan caps");
+  obj("gear.obj", gear(), "60-tooth gear 22 x 2, fan caps");
+  obj("terrain.obj", terrain(), "150 x 150 heightfield, open");
   obj("dense_scan.obj", denseScan(1), "bumpy torus, scan-sized");
   if (huge) obj("dense_scan_huge.obj", denseScan(2), "bumpy torus, 1.4M triangles");
 
@@ -539,10 +610,19 @@ void generateSuite(const std::string& dir, bool huge, std::ostream& log) {
       {"nonmanifold_fins", "nonmanifold_fins.obj", "", "non-manifold edges and vertex"},
       {"soup_rock", "soup_rock.stl", "", "triangle soup as STL files come: no vertex shared"},
       {"dense_scan", "dense_scan.obj", "", "352,800 triangles"},
+      {"fan_disk", "fan_disk.obj", "", "CAD cap alone: a disk meshed as a fan of 3000 slivers about one vertex"},
+      {"cad_cylinder", "cad_cylinder.obj", "", "cylinder as CAD exports it: caps are fans of slivers"},
+      {"pipe", "pipe.obj", "", "long thin pipe (300 x 1) with fan caps"},
+      {"gear", "gear.obj", "", "extruded gear, faces fanned from the center across the teeth"},
+      {"terrain", "terrain.obj", "", "open heightfield: a wide, gently wavy sheet"},
       {"blade_vs_bunny", "blade.obj", "bunny.obj", "different meshes: long flat part against a compact scan"},
       {"assembly_vs_bolt", "assembly.obj", "bolt.obj", "a part 1/100 the size of the assembly it approaches"},
       {"bolt_vs_assembly", "bolt.obj", "assembly.obj", "the same pair seen from the small part"},
       {"ground_bunny_vs_spider", "ground_bunny.obj", "spider.obj", "a scene against a thin-legged figure"},
+      {"fan_disk_vs_bunny", "fan_disk.obj", "bunny.obj", "a fan of slivers against a compact scan"},
+      {"cad_cylinder_vs_gear", "cad_cylinder.obj", "gear.obj",
+       "a CAD cylinder through a gear (a bolt at its center would sit in the hollow, out of the short bands)"},
+      {"pipe_vs_gear", "pipe.obj", "gear.obj", "a long thin pipe against a gear, both with fan caps"},
   };
   if (huge) entries.push_back({"dense_scan_huge", "dense_scan_huge.obj", "", "1,411,200 triangles (--huge only)"});
 

@@ -199,6 +199,51 @@ TEST_F(SuiteCliTest, GenerateWritesTheShapesIssue31AsksFor) {
   EXPECT_GE(boundingBox(assembly).diagonal() / boundingBox(bolt).diagonal(), 50) << "parts far apart in size";
   EXPECT_GE(loadMesh(suite + "/dense_scan.obj").triangles.size(), 350000u);
   EXPECT_FALSE(names.count("dense_scan_huge")) << "the 1.4M case is only written with --huge";
+
+  // The CAD-export family: planar faces fanned from one vertex. Counts follow from the stated resolutions
+  // (quads of the sides, plus one sliver per rim point of each fan cap).
+  struct Expected {
+    std::string mesh;
+    std::size_t triangles;
+    int boundary_edges;  // 0: a closed manifold, which `cfl info` must also report closed
+  };
+  const std::vector<Expected> cad = {
+      {"fan_disk.obj", 3000, 3000},                      // the rim of a 3000-sliver fan
+      {"cad_cylinder.obj", 2 * 256 * 20 + 2 * 256, 0},   // 21 rings of 256
+      {"pipe.obj", 2 * 16 * 399 + 2 * 16, 0},            // 400 rings of 16
+      {"gear.obj", 2 * 300 + 2 * 300, 0},                // 60 teeth of 5 profile points, one band
+      {"terrain.obj", 2 * 149 * 149, 4 * 149},           // 150 x 150 vertices
+  };
+  for (const Expected& e : cad) {
+    EXPECT_TRUE(meshes.count(e.mesh)) << e.mesh << " is in the manifest";
+    const TriangleMesh m = loadMesh(suite + "/" + e.mesh);
+    EXPECT_EQ(m.triangles.size(), e.triangles) << e.mesh;
+    const auto [boundary, most] = edgeUse(m);
+    EXPECT_EQ(boundary, e.boundary_edges) << e.mesh;
+    EXPECT_EQ(most, 2) << e.mesh << " is manifold";
+    for (const auto& t : m.triangles) {
+      const Eigen::Vector3d n = (m.vertices[t[1]] - m.vertices[t[0]]).cross(m.vertices[t[2]] - m.vertices[t[0]]);
+      ASSERT_GT(n.norm(), 0) << e.mesh << ": a degenerate triangle";
+    }
+    if (e.mesh != "terrain.obj") {  // building the terrain's model is slow; its edges are checked above
+      const ToolRun info = run({"info", suite + "/" + e.mesh});
+      ASSERT_EQ(info.status, 0) << info.err;
+      EXPECT_TRUE(contains(info.out, e.boundary_edges == 0 ? "closed:              yes" : "closed:              no (open"))
+          << e.mesh << "\n" << info.out;
+    }
+  }
+  // A fan: one vertex shared by all 3000 triangles of the disk.
+  const TriangleMesh disk = loadMesh(suite + "/fan_disk.obj");
+  std::map<int, int> degree;
+  for (const auto& t : disk.triangles) {
+    for (int v : t) ++degree[v];
+  }
+  int most_used = 0;
+  for (const auto& [v, n] : degree) most_used = std::max(most_used, n);
+  EXPECT_EQ(most_used, 3000);
+  for (const char* pair : {"fan_disk_vs_bunny", "cad_cylinder_vs_gear", "pipe_vs_gear"}) {
+    EXPECT_TRUE(names.count(pair)) << pair;
+  }
 }
 
 }  // namespace

@@ -422,7 +422,8 @@ class Search {
       const int edge_b = tb.spine_code & 3;
       const TriangleSpine spine_b = (tb.spine_code & kSliverSpine) != 0 ? TriangleSpine{edge_b, tb.spine_offset}
                                                                         : triangleSpine(tb.corners, edge_b);
-      if (spineLowerBound(c.data(), triangleSpine(c.data(), spine_a & 3), tb.corners, spine_b) >= threshold) {
+      if (spineLowerBound(c.data(), triangleSpine(c.data(), spine_a & 3), tb.corners, spine_b,
+                          kernels_.segment_segment) >= threshold) {
         return false;
       }
     }

@@ -58,15 +58,19 @@ inline std::uint8_t spineCode(const Eigen::Vector3d c[3]) {
 // two flat slivers face each other the offsets lie across u and the bound is nearly d, whatever their
 // widths; a bound from the widths alone (two capsules) loses both widths whichever way u points. The result
 // is lowered by a slack that covers the rounding of the closest points and offsets (a few eps of the
-// coordinates and lengths involved). About one segment-segment distance.
+// coordinates and lengths involved). About one segment-segment distance, `segment_distance`: a search
+// passes its kernel table's (QueryKernelTable::segment_segment, the same bits in every build).
+using SegmentSegmentDistance = double (*)(const Eigen::Vector3d&, const Eigen::Vector3d&, const Eigen::Vector3d&,
+                                          const Eigen::Vector3d&, Eigen::Vector3d*, Eigen::Vector3d*);
 inline double spineLowerBound(const Eigen::Vector3d a[3], const TriangleSpine& spine_a, const Eigen::Vector3d b[3],
-                              const TriangleSpine& spine_b) {
+                              const TriangleSpine& spine_b,
+                              SegmentSegmentDistance segment_distance = cfl::segmentSegmentSquaredDistance) {
   const Eigen::Vector3d& a0 = a[spine_a.edge];
   const Eigen::Vector3d& a1 = a[(spine_a.edge + 1) % 3];
   const Eigen::Vector3d& b0 = b[spine_b.edge];
   const Eigen::Vector3d& b1 = b[(spine_b.edge + 1) % 3];
   Eigen::Vector3d p, q;
-  const double squared = segmentSegmentSquaredDistance(a0, a1, b0, b1, &p, &q);
+  const double squared = segment_distance(a0, a1, b0, b1, &p, &q);
   if (!(squared > 0)) return -std::numeric_limits<double>::infinity();
   const double d = std::sqrt(squared);
   const Eigen::Vector3d u = (q - p) / d;

@@ -857,8 +857,16 @@ class Search {
   // Lower bound between node a of A's Bvh and a placed node of B: the larger of the sphere-box gap and the
   // separation of the two oriented boxes along the seven axes that matter for distance (the line joining
   // their centers, and each box's three axes). The oriented boxes are thin across flat patches, where facing
-  // surfaces are separated along their normals. Cheapest first: returns as soon as the bound reaches
-  // `threshold`, where the pair is pruned whatever the later axes say.
+  // surfaces are separated along their normals. Where either box is a needle, last, the boxes' spines
+  // (boxSpineLowerBound): the nodes of a disk fanned into slivers are needles all reaching the disk's
+  // center, which those axes leave far apart only where the needles are parallel or square to each other;
+  // compact boxes skip it, the line between their centers being as tight and cheaper. Cheapest first:
+  // returns as soon as the bound reaches `threshold`, where the pair is pruned whatever the later axes say.
+  // Whether an oriented box's middle extent is at most half its longest.
+  static bool isNeedle(const Eigen::Vector3d& half) {
+    const double longest = half.maxCoeff();
+    return half.sum() - longest - half.minCoeff() <= 0.5 * longest;
+  }
   double nodePairLowerBound(int a, const PlacedNode& b, double threshold) const {
     const BvhNode& node_a = mesh_a_.bvh.nodes[a];
     const BvhNode& node_b = *b.node;
@@ -885,7 +893,10 @@ class Search {
     const Eigen::Matrix3d cosines = (node_a.obb_axes.transpose() * b.obb_axes).cwiseAbs();
     const Eigen::Vector3d gap_a = offset.cwiseAbs() - half_a - cosines * half_b;
     const Eigen::Vector3d gap_b = offset_in_b.cwiseAbs() - half_b - cosines.transpose() * half_a;
-    return std::max({bound, gap_a.maxCoeff(), gap_b.maxCoeff()});
+    bound = std::max({bound, gap_a.maxCoeff(), gap_b.maxCoeff()});
+    if (bound >= threshold || !(isNeedle(half_a) || isNeedle(half_b))) return bound;
+    return std::max(bound, boxSpineLowerBound(node_a.obb_axes, node_a.obb_center, half_a, b.obb_axes, b.obb_center,
+                                              half_b, kernels_.segment_segment));
   }
 
   // Lower bound between a triangle and a node's sphere and oriented box, all in A's frame: the larger of the

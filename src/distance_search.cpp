@@ -854,6 +854,12 @@ class Search {
     return {&node, center, X_AB_.rotation * node.obb_axes, X_AB_.apply(node.obb_center)};
   }
 
+  // Whether an oriented box's middle extent is at most a quarter of its longest.
+  static bool isNeedle(const Eigen::Vector3d& half) {
+    const double longest = half.maxCoeff();
+    return half.sum() - longest - half.minCoeff() <= 0.25 * longest;
+  }
+
   // Lower bound between node a of A's Bvh and a placed node of B: the larger of the sphere-box gap and the
   // separation of the two oriented boxes along the seven axes that matter for distance (the line joining
   // their centers, and each box's three axes). The oriented boxes are thin across flat patches, where facing
@@ -862,11 +868,6 @@ class Search {
   // center, which those axes leave far apart only where the needles are parallel or square to each other;
   // compact boxes skip it, the line between their centers being as tight and cheaper. Cheapest first:
   // returns as soon as the bound reaches `threshold`, where the pair is pruned whatever the later axes say.
-  // Whether an oriented box's middle extent is at most half its longest.
-  static bool isNeedle(const Eigen::Vector3d& half) {
-    const double longest = half.maxCoeff();
-    return half.sum() - longest - half.minCoeff() <= 0.5 * longest;
-  }
   double nodePairLowerBound(int a, const PlacedNode& b, double threshold) const {
     const BvhNode& node_a = mesh_a_.bvh.nodes[a];
     const BvhNode& node_b = *b.node;

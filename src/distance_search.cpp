@@ -1325,9 +1325,11 @@ class Search {
     // its triangles, each bounded on its own as a child would be. Splitting the other piece further against
     // such a leaf's box instead would reach its small subtrees through every triangle of the leaf: where the
     // leaf's triangles face different ways (two faces of a box), its box is as loose as their union, and the
-    // pairs tested against the far triangle multiply.
-    const bool a_splits = !node_a.isLeaf() || node_a.count > 1;
-    const bool b_splits = !node_b.isLeaf() || node_b.count > 1;
+    // pairs tested against the far triangle multiply. Not a leaf whose box is a needle, against a node: its
+    // triangles lie side by side along it (the slivers of a fan), so its box is as tight as theirs, and split
+    // first each of them walked the other's subtree alone.
+    const bool a_splits = !node_a.isLeaf() || (node_a.count > 1 && (node_b.isLeaf() || !isNeedle(node_a.obb_half)));
+    const bool b_splits = !node_b.isLeaf() || (node_b.count > 1 && (node_a.isLeaf() || !isNeedle(node_b.obb_half)));
     if (a_splits && (!b_splits || node_a.radius >= node_b.radius)) {
       const PlacedNode placed = place(entry.node_b, X_AB_.apply(node_b.center));
       if (!node_a.isLeaf()) {

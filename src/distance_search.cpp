@@ -866,7 +866,8 @@ class Search {
   // surfaces are separated along their normals. Where either box is a needle, last, the boxes' spines
   // (boxSpineLowerBound): the nodes of a disk fanned into slivers are needles all reaching the disk's
   // center, which those axes leave far apart only where the needles are parallel or square to each other;
-  // compact boxes skip it, the line between their centers being as tight and cheaper. Cheapest first:
+  // compact boxes skip it, the line between their centers being as tight and cheaper, and so does the
+  // contact probe (threshold 0), which only follows overlapping boxes. Cheapest first:
   // returns as soon as the bound reaches `threshold`, where the pair is pruned whatever the later axes say.
   double nodePairLowerBound(int a, const PlacedNode& b, double threshold) const {
     const BvhNode& node_a = mesh_a_.bvh.nodes[a];
@@ -895,7 +896,7 @@ class Search {
     const Eigen::Vector3d gap_a = offset.cwiseAbs() - half_a - cosines * half_b;
     const Eigen::Vector3d gap_b = offset_in_b.cwiseAbs() - half_b - cosines.transpose() * half_a;
     bound = std::max({bound, gap_a.maxCoeff(), gap_b.maxCoeff()});
-    if (bound >= threshold || !(isNeedle(half_a) || isNeedle(half_b))) return bound;
+    if (bound >= threshold || !(threshold > 0) || !(isNeedle(half_a) || isNeedle(half_b))) return bound;
     return std::max(bound, boxSpineLowerBound(node_a.obb_axes, node_a.obb_center, half_a, b.obb_axes, b.obb_center,
                                               half_b, kernels_.segment_segment));
   }
@@ -1325,11 +1326,18 @@ class Search {
     // its triangles, each bounded on its own as a child would be. Splitting the other piece further against
     // such a leaf's box instead would reach its small subtrees through every triangle of the leaf: where the
     // leaf's triangles face different ways (two faces of a box), its box is as loose as their union, and the
-    // pairs tested against the far triangle multiply. Not a leaf whose box is a needle, against a node: its
-    // triangles lie side by side along it (the slivers of a fan), so its box is as tight as theirs, and split
-    // first each of them walked the other's subtree alone.
-    const bool a_splits = !node_a.isLeaf() || (node_a.count > 1 && (node_b.isLeaf() || !isNeedle(node_a.obb_half)));
-    const bool b_splits = !node_b.isLeaf() || (node_b.count > 1 && (node_a.isLeaf() || !isNeedle(node_b.obb_half)));
+    // pairs tested against the far triangle multiply. Not a leaf whose box is a needle, against a node at
+    // least as large as the needle is wide: its triangles lie side by side along it (the slivers of a fan), so
+    // its box is as tight as theirs, and split first each of them walked the other's subtree alone. Against a
+    // smaller node, the needle's triangles are apart for the node's size, and splitting it pays again (a
+    // bolt's small nodes against an assembly's long parts).
+    auto splitsFirst = [](const BvhNode& leaf, const BvhNode& other) {
+      if (other.isLeaf() || !isNeedle(leaf.obb_half)) return true;
+      const Eigen::Vector3d& half = leaf.obb_half;
+      return other.radius < half.sum() - half.maxCoeff() - half.minCoeff();
+    };
+    const bool a_splits = !node_a.isLeaf() || (node_a.count > 1 && splitsFirst(node_a, node_b));
+    const bool b_splits = !node_b.isLeaf() || (node_b.count > 1 && splitsFirst(node_b, node_a));
     if (a_splits && (!b_splits || node_a.radius >= node_b.radius)) {
       const PlacedNode placed = place(entry.node_b, X_AB_.apply(node_b.center));
       if (!node_a.isLeaf()) {

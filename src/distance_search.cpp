@@ -971,17 +971,9 @@ class Search {
     const BvhNode& node = mesh_a_.bvh.nodes[a];
     const double box_gap = std::sqrt(detail::pointBoxSquaredDistance(tb.center, node.box())) - tb.radius;
     if (box_gap >= threshold) return box_gap;
-    const double bound =
-        std::max(box_gap, triangleNodeLowerBound(tb.corners, tb.center, tb.radius, tb.normal, tb.offset, node.center,
-                                                 node.radius, node.obb_axes, node.obb_center, node.obb_half, threshold));
-    // A sliver's sphere and box are loose wherever it is not aligned with the node: last, its spine against
-    // the node's (triangleBoxSpineLowerBound). Only for B's triangles, which walk A's Bvh one by one from the
-    // leaves of B they split from (a disk of slivers as B against a scan as A); a sliver of A meets B's
-    // nodes the same way, but bounding it so cost more than it saved.
-    if (bound >= threshold || (tb.spine_code & kSliverSpine) == 0) return bound;
-    return std::max(bound, triangleBoxSpineLowerBound(tb.corners, TriangleSpine{tb.spine_code & 3, tb.spine_offset},
-                                                      node.obb_axes, node.obb_center, node.obb_half,
-                                                      kernels_.segment_segment));
+    return std::max(box_gap, triangleNodeLowerBound(tb.corners, tb.center, tb.radius, tb.normal, tb.offset, node.center,
+                                                    node.radius, node.obb_axes, node.obb_center, node.obb_half,
+                                                    threshold));
   }
 
   // Default mode: best-first over B's Bvh. A node of B is bounded against A's distance field in O(1); once

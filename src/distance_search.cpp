@@ -854,11 +854,21 @@ class Search {
     return {&node, center, X_AB_.rotation * node.obb_axes, X_AB_.apply(node.obb_center)};
   }
 
+  // Whether an oriented box's middle extent is at most a quarter of its longest.
+  static bool isNeedle(const Eigen::Vector3d& half) {
+    const double longest = half.maxCoeff();
+    return half.sum() - longest - half.minCoeff() <= 0.25 * longest;
+  }
+
   // Lower bound between node a of A's Bvh and a placed node of B: the larger of the sphere-box gap and the
   // separation of the two oriented boxes along the seven axes that matter for distance (the line joining
   // their centers, and each box's three axes). The oriented boxes are thin across flat patches, where facing
-  // surfaces are separated along their normals. Cheapest first: returns as soon as the bound reaches
-  // `threshold`, where the pair is pruned whatever the later axes say.
+  // surfaces are separated along their normals. Where either box is a needle, last, the boxes' spines
+  // (boxSpineLowerBound): the nodes of a disk fanned into slivers are needles all reaching the disk's
+  // center, which those axes leave far apart only where the needles are parallel or square to each other;
+  // compact boxes skip it, the line between their centers being as tight and cheaper, and so does the
+  // contact probe (threshold 0), which only follows overlapping boxes. Cheapest first:
+  // returns as soon as the bound reaches `threshold`, where the pair is pruned whatever the later axes say.
   double nodePairLowerBound(int a, const PlacedNode& b, double threshold) const {
     const BvhNode& node_a = mesh_a_.bvh.nodes[a];
     const BvhNode& node_b = *b.node;
@@ -885,7 +895,10 @@ class Search {
     const Eigen::Matrix3d cosines = (node_a.obb_axes.transpose() * b.obb_axes).cwiseAbs();
     const Eigen::Vector3d gap_a = offset.cwiseAbs() - half_a - cosines * half_b;
     const Eigen::Vector3d gap_b = offset_in_b.cwiseAbs() - half_b - cosines.transpose() * half_a;
-    return std::max({bound, gap_a.maxCoeff(), gap_b.maxCoeff()});
+    bound = std::max({bound, gap_a.maxCoeff(), gap_b.maxCoeff()});
+    if (bound >= threshold || !(threshold > 0) || !(isNeedle(half_a) || isNeedle(half_b))) return bound;
+    return std::max(bound, boxSpineLowerBound(node_a.obb_axes, node_a.obb_center, half_a, b.obb_axes, b.obb_center,
+                                              half_b, kernels_.segment_segment));
   }
 
   // Lower bound between a triangle and a node's sphere and oriented box, all in A's frame: the larger of the
@@ -1305,9 +1318,18 @@ class Search {
     // its triangles, each bounded on its own as a child would be. Splitting the other piece further against
     // such a leaf's box instead would reach its small subtrees through every triangle of the leaf: where the
     // leaf's triangles face different ways (two faces of a box), its box is as loose as their union, and the
-    // pairs tested against the far triangle multiply.
-    const bool a_splits = !node_a.isLeaf() || node_a.count > 1;
-    const bool b_splits = !node_b.isLeaf() || node_b.count > 1;
+    // pairs tested against the far triangle multiply. Not a leaf whose box is a needle, against a node at
+    // least as large as the needle is wide: its triangles lie side by side along it (the slivers of a fan), so
+    // its box is as tight as theirs, and split first each of them walked the other's subtree alone. Against a
+    // smaller node, the needle's triangles are apart for the node's size, and splitting it pays again (a
+    // bolt's small nodes against an assembly's long parts).
+    auto splitsFirst = [](const BvhNode& leaf, const BvhNode& other) {
+      if (other.isLeaf() || !isNeedle(leaf.obb_half)) return true;
+      const Eigen::Vector3d& half = leaf.obb_half;
+      return other.radius < half.sum() - half.maxCoeff() - half.minCoeff();
+    };
+    const bool a_splits = !node_a.isLeaf() || (node_a.count > 1 && splitsFirst(node_a, node_b));
+    const bool b_splits = !node_b.isLeaf() || (node_b.count > 1 && splitsFirst(node_b, node_a));
     if (a_splits && (!b_splits || node_a.radius >= node_b.radius)) {
       const PlacedNode placed = place(entry.node_b, X_AB_.apply(node_b.center));
       if (!node_a.isLeaf()) {

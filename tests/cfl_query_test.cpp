@@ -1380,6 +1380,25 @@ TEST(ComputeDistance, SliverFanDisksMatchBruteForce) {
                                      "flat fan");
   expectSelfDistancesMatchBruteForce(*makeShape("domed fan", fan(400, 0.7), 0), {0.005, 0.02, 0.1, 0.5}, 8, 2718,
                                      "domed fan");
+  // Against a compact mesh, either way round: the fan's leaves are needles that stay whole against the
+  // torus's larger nodes and split against its smaller ones.
+  TriangleMesh small_fan = fan(300, 0.4);
+  for (Eigen::Vector3d& v : small_fan.vertices) v *= 0.1;
+  const auto torus = makeShape("torus", test::makeTorus(1.0, 0.35, 24, 12), 0);
+  const auto disk = makeShape("fan", std::move(small_fan), 0);
+  for (const auto& [a, b] : {std::pair{torus.get(), disk.get()}, std::pair{disk.get(), torus.get()}}) {
+    test::Rng rng(577);
+    Failures failures;
+    for (double fraction : {0.0, 0.005, 0.02, 0.1, 0.5, 1.0}) {
+      for (int n = 0; n < 8; ++n) {
+        const Pose pose = makePose(*a, *b, fraction, rng);
+        const DistanceResult truth = bruteForceDistance(a->model, pose.X_WA, b->model, pose.X_WB);
+        checkResult(computeDistance(a->cfl, pose.X_WA, b->model, pose.X_WB), truth, *a, *b, pose,
+                    a->name + " against " + b->name, failures);
+      }
+    }
+    EXPECT_EQ(failures.count(), 0) << a->name << " against " << b->name;
+  }
 }
 
 // B's Bvh leaves that reach past A's grid go on whole as node pairs with A's Bvh (Search::expand), their

@@ -51,10 +51,21 @@ def measure(work):
     return iterations, allowance, seconds
 
 
+# A loaded machine can stall either thread for longer than a switch interval, which makes one measurement
+# say either thing: each check takes the best of three tries, which a call that holds the GIL (or one that
+# releases it) still fails every time.
+TRIES = 3
+
+
 def assert_gil_released(work):
-    iterations, allowance, seconds = measure(work)
-    assert seconds > 20 * sys.getswitchinterval(), "the call should be long enough to tell"
-    assert iterations > allowance, (iterations, allowance, seconds)
+    tries = []
+    for _ in range(TRIES):
+        iterations, allowance, seconds = measure(work)
+        assert seconds > 20 * sys.getswitchinterval(), "the call should be long enough to tell"
+        if iterations > allowance:
+            return
+        tries.append((iterations, allowance, seconds))
+    assert False, tries
 
 
 def test_a_batch_lets_other_threads_run(models):
@@ -69,6 +80,11 @@ def test_a_build_lets_other_threads_run():
 
 def test_the_check_catches_a_call_that_holds_the_gil():
     # sum() over a range runs in C without releasing the GIL.
-    iterations, allowance, seconds = measure(lambda: sum(range(4 * 10**7)))
-    assert seconds > 20 * sys.getswitchinterval()
-    assert iterations <= allowance, (iterations, allowance, seconds)
+    tries = []
+    for _ in range(TRIES):
+        iterations, allowance, seconds = measure(lambda: sum(range(4 * 10**7)))
+        assert seconds > 20 * sys.getswitchinterval()
+        if iterations <= allowance:
+            return
+        tries.append((iterations, allowance, seconds))
+    assert False, tries

@@ -79,4 +79,34 @@ inline double spineLowerBound(const Eigen::Vector3d a[3], const TriangleSpine& s
   return d + std::min(0.0, u.dot(spine_b.offset)) - std::max(0.0, u.dot(spine_a.offset)) - slack;
 }
 
+// The same bound for two oriented boxes (points c + axes * s with |s_i| <= half_i): each box is its longest
+// axis's segment through its center (its spine) swept by the rectangle of its other two half extents, so
+// for x in box a and y in box b, u . (y - x) >= d - sum over the other two axes k of half_k |u . axis_k|,
+// both boxes' terms. Where the boxes are needles or facing slabs (the Bvh nodes of a disk fanned into
+// slivers, every one of them reaching the disk's center) it is nearly the distance; the separating axes
+// of the faces and the line between the centers are loose there.
+inline double boxSpineLowerBound(const Eigen::Matrix3d& axes_a, const Eigen::Vector3d& center_a,
+                                 const Eigen::Vector3d& half_a, const Eigen::Matrix3d& axes_b,
+                                 const Eigen::Vector3d& center_b, const Eigen::Vector3d& half_b,
+                                 SegmentSegmentDistance segment_distance = cfl::segmentSegmentSquaredDistance) {
+  int long_a, long_b;
+  half_a.maxCoeff(&long_a);
+  half_b.maxCoeff(&long_b);
+  const Eigen::Vector3d reach_a = half_a[long_a] * axes_a.col(long_a);
+  const Eigen::Vector3d reach_b = half_b[long_b] * axes_b.col(long_b);
+  Eigen::Vector3d p, q;
+  const double squared = segment_distance(center_a - reach_a, center_a + reach_a, center_b - reach_b,
+                                          center_b + reach_b, &p, &q);
+  if (!(squared > 0)) return -std::numeric_limits<double>::infinity();
+  const double d = std::sqrt(squared);
+  const Eigen::Vector3d u = (q - p) / d;
+  Eigen::Vector3d across_a = half_a, across_b = half_b;
+  across_a[long_a] = 0;
+  across_b[long_b] = 0;
+  const double slack = 1e-12 * (p.cwiseAbs().sum() + q.cwiseAbs().sum() + reach_a.cwiseAbs().sum() +
+                                reach_b.cwiseAbs().sum() + half_a.sum() + half_b.sum());
+  return d - across_a.dot((axes_a.transpose() * u).cwiseAbs()) - across_b.dot((axes_b.transpose() * u).cwiseAbs()) -
+         slack;
+}
+
 }  // namespace cfl::detail

@@ -360,6 +360,16 @@ constexpr double kNearCells = 4;
 constexpr std::uint32_t kLongestNearList = 256;
 constexpr std::uint32_t kLongestFarList = 64;
 constexpr int kDeepest = 20;  // levels below the root, within RegionTree::kMaxDepth
+// What an adaptive build's regions (nodes, leaf arrays and lists) may hold: this much plus so much per
+// triangle. Around a thin part (a long pipe, a rod) every leaf a few of its edges away lists a whole stretch
+// of the part's circumference, since the cell is wider than the part and the conservative tests cannot tell
+// its far side from its near side; those leaves multiplied the model past twice an OBBRSS hierarchy while
+// the lists next to the surface cost what they cost elsewhere. Past the budget, the lists farthest from the
+// mesh go first (longest first among equals): they serve only farther queries, which the leaves' lower
+// bounds and the Bvh answer, and the lists next to the surface, which short-range queries scan, stay. The
+// fixed part spares small meshes, whose root grid alone is a large share of their model.
+constexpr std::int64_t kListBudgetBytes = std::int64_t(1) << 20;
+constexpr std::int64_t kListBudgetBytesPerTriangle = 688;
 // What computeCellList returns for a cell certain to split, whose list it did not compute.
 constexpr std::uint32_t kCertainSplit = RegionTree::kNoList - 1;
 
@@ -1147,6 +1157,53 @@ class SubtreeBuilder {
   bool adaptive_;
 };
 
+// Which stored lists (one flag per stored list, in subtree order) an adaptive build drops so that its
+// regions fit in `budget` bytes (see kListBudgetBytes), counting every list as stored (identical lists are
+// stored once, so the model may come out smaller); empty when they fit as they are. The lists of the leaves
+// farthest from the mesh go first, the longest first among equals, then the leaf's order: the same flags
+// whatever the number of workers.
+std::vector<std::uint8_t> listsOverBudget(const std::vector<Subtree>& subtrees, std::int64_t root_count,
+                                          std::int64_t budget) {
+  // A leaf's node and arrays (RegionTree: nodes, leaf_list, leaf_lower_bound, leaf_corner_distance), and a
+  // stored list's offset, base and entries (ids and bounds).
+  constexpr std::int64_t kLeafBytes = sizeof(std::uint32_t) * 2 + sizeof(float) +
+                                      sizeof(decltype(RegionTree::leaf_corner_distance)::value_type);
+  auto listBytes = [](std::uint32_t length) {
+    return std::int64_t(sizeof(std::uint32_t) + 2 * sizeof(std::uint16_t)) +
+           std::int64_t(length) * std::int64_t(sizeof(std::uint16_t) + sizeof(std::uint8_t));
+  };
+  struct Stored {
+    float lower_bound;
+    std::uint32_t length;
+    std::uint32_t ordinal;
+  };
+  std::vector<Stored> stored;
+  std::int64_t bytes = std::int64_t(sizeof(std::uint32_t)) * root_count;
+  for (const Subtree& subtree : subtrees) {
+    bytes += std::int64_t(sizeof(std::uint32_t)) * (std::int64_t(subtree.nodes.size()) - 1) +
+             kLeafBytes * std::int64_t(subtree.list_length.size());
+    for (std::size_t leaf = 0; leaf < subtree.list_length.size(); ++leaf) {
+      const std::uint32_t length = subtree.list_length[leaf];
+      if (length == RegionTree::kNoList) continue;
+      bytes += listBytes(length);
+      stored.push_back({subtree.lower_bound[leaf], length, std::uint32_t(stored.size())});
+    }
+  }
+  if (bytes <= budget) return {};
+  std::vector<std::uint8_t> dropped(stored.size(), 0);
+  std::sort(stored.begin(), stored.end(), [](const Stored& a, const Stored& b) {
+    if (a.lower_bound != b.lower_bound) return a.lower_bound > b.lower_bound;
+    if (a.length != b.length) return a.length > b.length;
+    return a.ordinal < b.ordinal;
+  });
+  for (const Stored& list : stored) {
+    if (bytes <= budget) break;
+    dropped[list.ordinal] = 1;
+    bytes -= listBytes(list.length);
+  }
+  return dropped;
+}
+
 }  // namespace
 
 CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
@@ -1285,16 +1342,25 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   root_corner_distance = {};
   root_corner_triangle = {};
   arena.execute([&] { sign_task.wait(); });
+  const std::vector<std::uint8_t> dropped =
+      adaptive ? listsOverBudget(subtrees, root_count,
+                                 kListBudgetBytes + kListBudgetBytesPerTriangle * std::int64_t(geometry.corners.size()))
+               : std::vector<std::uint8_t>();
 
   // 3. Flatten: root cells first, then each root cell's descendants in turn; identical lists (same ids,
   //    bounds and depth, so the bounds' unit agrees) stored once.
   std::int64_t node_count = root_count, leaf_count = 0, entry_count = 0, stored_count = 0;
   double farthest_corner = 0;  // in edges of the corner's leaf
+  std::size_t ordinal = 0;     // of the stored lists, in subtree order (`dropped`)
   for (const Subtree& subtree : subtrees) {
     node_count += std::int64_t(subtree.nodes.size()) - 1;
     leaf_count += std::int64_t(subtree.list_length.size());
-    entry_count += std::int64_t(subtree.lists.ids.size());
-    for (std::uint32_t length : subtree.list_length) stored_count += length != RegionTree::kNoList;
+    for (std::uint32_t length : subtree.list_length) {
+      if (length == RegionTree::kNoList) continue;
+      if (!dropped.empty() && dropped[ordinal++]) continue;
+      ++stored_count;
+      entry_count += length;
+    }
     for (std::size_t leaf = 0; leaf < subtree.corner_distance.size(); ++leaf) {
       const double size = tree.cellSize(subtree.depth[leaf]);
       for (float distance : subtree.corner_distance[leaf]) farthest_corner = std::max(farthest_corner, distance / size);
@@ -1319,6 +1385,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   detail::HashIdTable lists_by_hash = detail::makeHashIdTable(std::size_t(stored_count));
   std::vector<std::uint8_t> list_depth;
   std::int64_t total_length = 0, longest = 0;
+  ordinal = 0;
   for (std::int64_t r = 0; r < root_count; ++r) {
     Subtree& subtree = subtrees[r];
     const std::uint32_t node_base = static_cast<std::uint32_t>(tree.nodes.size());  // of local node 1
@@ -1350,6 +1417,12 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       }
       const std::uint32_t length = subtree.list_length[leaf];
       offset += length;
+      if (!dropped.empty() && dropped[ordinal++]) {
+        ++stored;
+        tree.leaf_list.push_back(RegionTree::kNoList);
+        ++stats.leaves_without_list;
+        continue;
+      }
       total_length += length;
       longest = std::max<std::int64_t>(longest, length);
       const std::uint64_t hash = subtree.list_hash[stored++];

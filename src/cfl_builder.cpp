@@ -361,13 +361,11 @@ constexpr std::uint32_t kLongestNearList = 256;
 constexpr std::uint32_t kLongestFarList = 64;
 constexpr int kDeepest = 20;  // levels below the root, within RegionTree::kMaxDepth
 // What an adaptive build's regions (nodes, leaf arrays and lists) may hold: this much plus so much per
-// triangle. Around a thin part (a long pipe, a rod) every leaf a few of its edges away lists a whole stretch
-// of the part's circumference, since the cell is wider than the part and the conservative tests cannot tell
-// its far side from its near side; those leaves multiplied the model past twice an OBBRSS hierarchy while
-// the lists next to the surface cost what they cost elsewhere. Past the budget, the lists farthest from the
-// mesh go first (longest first among equals): they serve only farther queries, which the leaves' lower
-// bounds and the Bvh answer, and the lists next to the surface, which short-range queries scan, stay. The
-// fixed part spares small meshes, whose root grid alone is a large share of their model.
+// triangle (see fitListsInBudget). Around a thin part (a long pipe, a rod) every leaf a few of its edges
+// away lists a whole stretch of the part's circumference, since the cell is wider than the part and the
+// conservative tests cannot tell the part's far side from its near side: those leaves took the model past
+// twice an OBBRSS hierarchy while the lists next to the surface cost what they cost elsewhere. The fixed
+// part spares small meshes, whose root grid alone is a large share of their model.
 constexpr std::int64_t kListBudgetBytes = std::int64_t(1) << 20;
 constexpr std::int64_t kListBudgetBytesPerTriangle = 688;
 // What computeCellList returns for a cell certain to split, whose list it did not compute.
@@ -1157,51 +1155,209 @@ class SubtreeBuilder {
   bool adaptive_;
 };
 
-// Which stored lists (one flag per stored list, in subtree order) an adaptive build drops so that its
-// regions fit in `budget` bytes (see kListBudgetBytes), counting every list as stored (identical lists are
-// stored once, so the model may come out smaller); empty when they fit as they are. The lists of the leaves
-// farthest from the mesh go first, the longest first among equals, then the leaf's order: the same flags
-// whatever the number of workers.
-std::vector<std::uint8_t> listsOverBudget(const std::vector<Subtree>& subtrees, std::int64_t root_count,
-                                          std::int64_t budget) {
+// Keeps an adaptive build's regions within `budget` bytes (see kListBudgetBytes), counting every list as
+// stored (identical lists are stored once, so the model may come out smaller). Past it, first the eight
+// leaves of a split cell share one list, the union of theirs with bounds from the whole cell (valid for each
+// of them, in their unit), which the flattening stores once: around a thin part eight neighbouring lists
+// mostly name the same stretch of it, so the union costs little more than one of them. Each leaf keeps its
+// own lower bound and corner distances, which prune most of a query. The cells farthest from the mesh go
+// first: their lists serve only farther queries, and the lists next to the surface, which short-range
+// queries scan, stay as they are. If that is not enough, the lists farthest from the mesh are dropped
+// (RegionTree::kNoList: queries take the Bvh there). Ties go by position, so that the result does not depend
+// on the number of workers.
+void fitListsInBudget(const BuildContext& context, const RegionTree& tree, std::vector<Subtree>& subtrees,
+                      std::int64_t budget) {
   // A leaf's node and arrays (RegionTree: nodes, leaf_list, leaf_lower_bound, leaf_corner_distance), and a
   // stored list's offset, base and entries (ids and bounds).
   constexpr std::int64_t kLeafBytes = sizeof(std::uint32_t) * 2 + sizeof(float) +
                                       sizeof(decltype(RegionTree::leaf_corner_distance)::value_type);
-  auto listBytes = [](std::uint32_t length) {
+  auto listBytes = [](std::int64_t length) {
     return std::int64_t(sizeof(std::uint32_t) + 2 * sizeof(std::uint16_t)) +
-           std::int64_t(length) * std::int64_t(sizeof(std::uint16_t) + sizeof(std::uint8_t));
+           length * std::int64_t(sizeof(std::uint16_t) + sizeof(std::uint8_t));
   };
-  struct Stored {
-    float lower_bound;
-    std::uint32_t length;
-    std::uint32_t ordinal;
-  };
-  std::vector<Stored> stored;
+  const std::int64_t root_count = std::int64_t(subtrees.size());
   std::int64_t bytes = std::int64_t(sizeof(std::uint32_t)) * root_count;
   for (const Subtree& subtree : subtrees) {
     bytes += std::int64_t(sizeof(std::uint32_t)) * (std::int64_t(subtree.nodes.size()) - 1) +
              kLeafBytes * std::int64_t(subtree.list_length.size());
-    for (std::size_t leaf = 0; leaf < subtree.list_length.size(); ++leaf) {
-      const std::uint32_t length = subtree.list_length[leaf];
-      if (length == RegionTree::kNoList) continue;
-      bytes += listBytes(length);
-      stored.push_back({subtree.lower_bound[leaf], length, std::uint32_t(stored.size())});
+    for (std::uint32_t length : subtree.list_length) {
+      if (length != RegionTree::kNoList) bytes += listBytes(length);
     }
   }
-  if (bytes <= budget) return {};
-  std::vector<std::uint8_t> dropped(stored.size(), 0);
-  std::sort(stored.begin(), stored.end(), [](const Stored& a, const Stored& b) {
-    if (a.lower_bound != b.lower_bound) return a.lower_bound > b.lower_bound;
-    if (a.length != b.length) return a.length > b.length;
-    return a.ordinal < b.ordinal;
+  if (bytes <= budget) return;
+
+  // Per subtree: where each leaf's list starts in subtree.lists, and the cells whose eight children are
+  // leaves that all store a list, with the union of those lists.
+  struct Group {
+    std::vector<std::uint32_t> leaves;  // the cell's children that are leaves with a list
+    float lower_bound;                  // the smallest of theirs
+    std::vector<std::int32_t> ids;
+    std::vector<std::uint8_t> bounds;
+  };
+  std::vector<std::vector<std::size_t>> list_begin(subtrees.size());
+  std::vector<std::vector<Group>> groups(subtrees.size());
+  tbb::enumerable_thread_specific<ListScratch> scratches;
+  tbb::parallel_for(std::int64_t(0), root_count, [&](std::int64_t r) {
+    const Subtree& subtree = subtrees[r];
+    std::vector<std::size_t>& begin = list_begin[r];
+    begin.resize(subtree.list_length.size() + 1);
+    begin[0] = 0;
+    for (std::size_t leaf = 0; leaf < subtree.list_length.size(); ++leaf) {
+      const std::uint32_t length = subtree.list_length[leaf];
+      begin[leaf + 1] = begin[leaf] + (length == RegionTree::kNoList ? 0 : length);
+    }
+    const int i = int(r % tree.root_dims[0]);
+    const int j = int((r / tree.root_dims[0]) % tree.root_dims[1]);
+    const int k = int(r / (std::int64_t(tree.root_dims[0]) * tree.root_dims[1]));
+    struct Pending {
+      std::uint32_t node;
+      int depth;
+      Eigen::Vector3d min_corner;
+    };
+    std::vector<Pending> stack{{0, 0, tree.origin + tree.root_size * Eigen::Vector3d(i, j, k)}};
+    while (!stack.empty()) {
+      const Pending cell = stack.back();
+      stack.pop_back();
+      const std::uint32_t value = subtree.nodes[cell.node];
+      if (value & RegionTree::kLeafBit) continue;
+      const double half = 0.5 * tree.cellSize(cell.depth);
+      Group group;
+      for (int octant = 0; octant < 8; ++octant) {
+        const std::uint32_t child = subtree.nodes[value + octant];
+        if (!(child & RegionTree::kLeafBit)) {
+          stack.push_back({value + std::uint32_t(octant), cell.depth + 1,
+                           cell.min_corner + half * Eigen::Vector3d(octant & 1, (octant >> 1) & 1, octant >> 2)});
+        } else if (subtree.list_length[child & ~RegionTree::kLeafBit] != RegionTree::kNoList) {
+          group.leaves.push_back(child & ~RegionTree::kLeafBit);
+        }
+      }
+      if (group.leaves.size() < 2) continue;
+      group.lower_bound = std::numeric_limits<float>::max();
+      for (const std::uint32_t leaf : group.leaves) {
+        group.lower_bound = std::min(group.lower_bound, subtree.lower_bound[leaf]);
+        group.ids.insert(group.ids.end(), subtree.lists.ids.begin() + std::ptrdiff_t(begin[leaf]),
+                         subtree.lists.ids.begin() + std::ptrdiff_t(begin[leaf + 1]));
+      }
+      std::sort(group.ids.begin(), group.ids.end());
+      group.ids.erase(std::unique(group.ids.begin(), group.ids.end()), group.ids.end());
+      // Bounds from the whole cell, in the children's unit, sorted by (bound, id) as every list.
+      const Eigen::Vector3d center = cell.min_corner + Eigen::Vector3d::Constant(half);
+      const double unit = tree.entryBoundUnit(cell.depth + 1);
+      std::vector<std::uint64_t>& keys = scratches.local().sort_keys;
+      keys.clear();
+      for (const std::int32_t id : group.ids) {
+        const auto& c = context.geometry.corners[id];
+        Eigen::Vector3d closest;
+        context.squaredDistance(center, c, &closest);
+        const double d_min = detail::cubeTriangleLowerBound(center, half, c[0], c[1], c[2], closest);
+        keys.push_back(std::uint64_t(quantizeEntryBound(d_min, unit)) << 32 | std::uint32_t(id));
+      }
+      std::sort(keys.begin(), keys.end());
+      group.bounds.resize(keys.size());
+      for (std::size_t n = 0; n < keys.size(); ++n) {
+        group.bounds[n] = std::uint8_t(keys[n] >> 32);
+        group.ids[n] = std::int32_t(keys[n] & 0xffffffffu);
+      }
+      groups[r].push_back(std::move(group));
+    }
   });
-  for (const Stored& list : stored) {
-    if (bytes <= budget) break;
-    dropped[list.ordinal] = 1;
-    bytes -= listBytes(list.length);
+
+  // Merges, farthest cells first, while it saves and the budget is exceeded.
+  struct Choice {
+    float lower_bound;
+    std::int64_t r;
+    std::uint32_t index;  // of the group, or of the leaf
+  };
+  std::vector<Choice> order;
+  for (std::int64_t r = 0; r < root_count; ++r) {
+    for (std::uint32_t g = 0; g < groups[r].size(); ++g) order.push_back({groups[r][g].lower_bound, r, g});
   }
-  return dropped;
+  auto farthestFirst = [](const Choice& a, const Choice& b) {
+    if (a.lower_bound != b.lower_bound) return a.lower_bound > b.lower_bound;
+    return a.r != b.r ? a.r < b.r : a.index < b.index;
+  };
+  std::sort(order.begin(), order.end(), farthestFirst);
+  std::vector<std::vector<std::uint8_t>> merged(subtrees.size());
+  for (std::int64_t r = 0; r < root_count; ++r) merged[r].assign(groups[r].size(), 0);
+  for (const Choice& choice : order) {
+    if (bytes <= budget) break;
+    const Subtree& subtree = subtrees[choice.r];
+    const Group& group = groups[choice.r][choice.index];
+    std::int64_t before = 0;
+    for (const std::uint32_t leaf : group.leaves) before += listBytes(subtree.list_length[leaf]);
+    const std::int64_t after = listBytes(std::int64_t(group.ids.size()));
+    if (after >= before) continue;
+    merged[choice.r][choice.index] = 1;
+    bytes -= before - after;
+  }
+
+  // Drops, farthest leaves first (a merged group's list goes with its last leaf), while still exceeded.
+  std::vector<std::vector<std::uint32_t>> group_of(subtrees.size());  // per leaf: 1 + merged group, or 0
+  std::vector<std::vector<std::uint8_t>> dropped(subtrees.size());
+  std::vector<std::vector<std::uint8_t>> group_left(subtrees.size());  // per group: its leaves still listing
+  order.clear();
+  for (std::int64_t r = 0; r < root_count; ++r) {
+    const Subtree& subtree = subtrees[r];
+    group_of[r].assign(subtree.list_length.size(), 0);
+    dropped[r].assign(subtree.list_length.size(), 0);
+    group_left[r].resize(groups[r].size());
+    for (std::uint32_t g = 0; g < groups[r].size(); ++g) {
+      group_left[r][g] = std::uint8_t(groups[r][g].leaves.size());
+      if (!merged[r][g]) continue;
+      for (const std::uint32_t leaf : groups[r][g].leaves) group_of[r][leaf] = g + 1;
+    }
+    if (bytes <= budget) continue;
+    for (std::uint32_t leaf = 0; leaf < subtree.list_length.size(); ++leaf) {
+      if (subtree.list_length[leaf] != RegionTree::kNoList) order.push_back({subtree.lower_bound[leaf], r, leaf});
+    }
+  }
+  std::sort(order.begin(), order.end(), farthestFirst);
+  for (const Choice& choice : order) {
+    if (bytes <= budget) break;
+    dropped[choice.r][choice.index] = 1;
+    const std::uint32_t g = group_of[choice.r][choice.index];
+    if (g == 0) {
+      bytes -= listBytes(subtrees[choice.r].list_length[choice.index]);
+    } else if (--group_left[choice.r][g - 1] == 0) {
+      bytes -= listBytes(std::int64_t(groups[choice.r][g - 1].ids.size()));
+    }
+  }
+
+  // Rewrites the lists of the subtrees that changed, and their hashes.
+  tbb::parallel_for(std::int64_t(0), root_count, [&](std::int64_t r) {
+    Subtree& subtree = subtrees[r];
+    bool changed = false;
+    for (std::uint32_t leaf = 0; leaf < subtree.list_length.size(); ++leaf) {
+      changed = changed || dropped[r][leaf] || group_of[r][leaf] != 0;
+    }
+    if (!changed) return;
+    CellListOutput lists;
+    subtree.list_hash.clear();
+    for (std::uint32_t leaf = 0; leaf < subtree.list_length.size(); ++leaf) {
+      std::uint32_t& length = subtree.list_length[leaf];
+      if (length == RegionTree::kNoList) continue;
+      if (dropped[r][leaf]) {
+        length = RegionTree::kNoList;
+        continue;
+      }
+      const std::size_t begin = lists.ids.size();
+      if (const std::uint32_t g = group_of[r][leaf]) {
+        const Group& group = groups[r][g - 1];
+        lists.ids.insert(lists.ids.end(), group.ids.begin(), group.ids.end());
+        lists.bounds.insert(lists.bounds.end(), group.bounds.begin(), group.bounds.end());
+        length = std::uint32_t(group.ids.size());
+      } else {
+        const auto from = std::ptrdiff_t(list_begin[r][leaf]);
+        lists.ids.insert(lists.ids.end(), subtree.lists.ids.begin() + from, subtree.lists.ids.begin() + from + length);
+        lists.bounds.insert(lists.bounds.end(), subtree.lists.bounds.begin() + from,
+                            subtree.lists.bounds.begin() + from + length);
+      }
+      subtree.list_hash.push_back(listHash(lists.ids.data() + begin, lists.bounds.data() + begin, length,
+                                           subtree.depth[leaf]));
+    }
+    subtree.lists.ids = std::move(lists.ids);
+    subtree.lists.bounds = std::move(lists.bounds);
+  });
 }
 
 }  // namespace
@@ -1341,26 +1497,23 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   });
   root_corner_distance = {};
   root_corner_triangle = {};
+  if (adaptive) {
+    arena.execute([&] {
+      fitListsInBudget(context, tree, subtrees,
+                       kListBudgetBytes + kListBudgetBytesPerTriangle * std::int64_t(geometry.corners.size()));
+    });
+  }
   arena.execute([&] { sign_task.wait(); });
-  const std::vector<std::uint8_t> dropped =
-      adaptive ? listsOverBudget(subtrees, root_count,
-                                 kListBudgetBytes + kListBudgetBytesPerTriangle * std::int64_t(geometry.corners.size()))
-               : std::vector<std::uint8_t>();
 
   // 3. Flatten: root cells first, then each root cell's descendants in turn; identical lists (same ids,
   //    bounds and depth, so the bounds' unit agrees) stored once.
   std::int64_t node_count = root_count, leaf_count = 0, entry_count = 0, stored_count = 0;
   double farthest_corner = 0;  // in edges of the corner's leaf
-  std::size_t ordinal = 0;     // of the stored lists, in subtree order (`dropped`)
   for (const Subtree& subtree : subtrees) {
     node_count += std::int64_t(subtree.nodes.size()) - 1;
     leaf_count += std::int64_t(subtree.list_length.size());
-    for (std::uint32_t length : subtree.list_length) {
-      if (length == RegionTree::kNoList) continue;
-      if (!dropped.empty() && dropped[ordinal++]) continue;
-      ++stored_count;
-      entry_count += length;
-    }
+    entry_count += std::int64_t(subtree.lists.ids.size());
+    for (std::uint32_t length : subtree.list_length) stored_count += length != RegionTree::kNoList;
     for (std::size_t leaf = 0; leaf < subtree.corner_distance.size(); ++leaf) {
       const double size = tree.cellSize(subtree.depth[leaf]);
       for (float distance : subtree.corner_distance[leaf]) farthest_corner = std::max(farthest_corner, distance / size);
@@ -1385,7 +1538,6 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   detail::HashIdTable lists_by_hash = detail::makeHashIdTable(std::size_t(stored_count));
   std::vector<std::uint8_t> list_depth;
   std::int64_t total_length = 0, longest = 0;
-  ordinal = 0;
   for (std::int64_t r = 0; r < root_count; ++r) {
     Subtree& subtree = subtrees[r];
     const std::uint32_t node_base = static_cast<std::uint32_t>(tree.nodes.size());  // of local node 1
@@ -1417,12 +1569,6 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       }
       const std::uint32_t length = subtree.list_length[leaf];
       offset += length;
-      if (!dropped.empty() && dropped[ordinal++]) {
-        ++stored;
-        tree.leaf_list.push_back(RegionTree::kNoList);
-        ++stats.leaves_without_list;
-        continue;
-      }
       total_length += length;
       longest = std::max<std::int64_t>(longest, length);
       const std::uint64_t hash = subtree.list_hash[stored++];

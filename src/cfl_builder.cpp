@@ -1191,12 +1191,20 @@ void fitListsInBudget(const BuildContext& context, const RegionTree& tree, std::
   struct Group {
     std::vector<std::uint32_t> leaves;  // the cell's children that are leaves with a list
     float lower_bound;                  // the smallest of theirs
-    std::vector<std::int32_t> ids;
-    std::vector<std::uint8_t> bounds;
+    Eigen::Vector3d center;             // the cell's
+    double half;
+    int depth;
+    std::vector<std::int32_t> ids;      // the union of the lists, by id; by (bound, id) once merged
+    std::vector<std::uint8_t> bounds;   // computed only for the groups that merge
   };
   std::vector<std::vector<std::size_t>> list_begin(subtrees.size());
   std::vector<std::vector<Group>> groups(subtrees.size());
   tbb::enumerable_thread_specific<ListScratch> scratches;
+  struct Stamps {
+    std::vector<std::uint32_t> stamp;  // per triangle: the last union that took it
+    std::uint32_t last = 0;
+  };
+  tbb::enumerable_thread_specific<Stamps> stamps_per_worker;
   tbb::parallel_for(std::int64_t(0), root_count, [&](std::int64_t r) {
     const Subtree& subtree = subtrees[r];
     std::vector<std::size_t>& begin = list_begin[r];
@@ -1232,32 +1240,27 @@ void fitListsInBudget(const BuildContext& context, const RegionTree& tree, std::
         }
       }
       if (group.leaves.size() < 2) continue;
+      // The union in first-seen order (the merged list is sorted by its bounds later), each id once by a stamp
+      // per triangle: sorting every candidate's ids took most of this step.
+      Stamps& stamps = stamps_per_worker.local();
+      if (stamps.stamp.empty() || stamps.last == std::numeric_limits<std::uint32_t>::max()) {
+        stamps.stamp.assign(context.geometry.mesh.triangles.size(), 0);
+        stamps.last = 0;
+      }
+      const std::uint32_t stamp = ++stamps.last;
       group.lower_bound = std::numeric_limits<float>::max();
       for (const std::uint32_t leaf : group.leaves) {
         group.lower_bound = std::min(group.lower_bound, subtree.lower_bound[leaf]);
-        group.ids.insert(group.ids.end(), subtree.lists.ids.begin() + std::ptrdiff_t(begin[leaf]),
-                         subtree.lists.ids.begin() + std::ptrdiff_t(begin[leaf + 1]));
+        for (std::size_t n = begin[leaf]; n < begin[leaf + 1]; ++n) {
+          const std::int32_t id = subtree.lists.ids[n];
+          if (stamps.stamp[id] == stamp) continue;
+          stamps.stamp[id] = stamp;
+          group.ids.push_back(id);
+        }
       }
-      std::sort(group.ids.begin(), group.ids.end());
-      group.ids.erase(std::unique(group.ids.begin(), group.ids.end()), group.ids.end());
-      // Bounds from the whole cell, in the children's unit, sorted by (bound, id) as every list.
-      const Eigen::Vector3d center = cell.min_corner + Eigen::Vector3d::Constant(half);
-      const double unit = tree.entryBoundUnit(cell.depth + 1);
-      std::vector<std::uint64_t>& keys = scratches.local().sort_keys;
-      keys.clear();
-      for (const std::int32_t id : group.ids) {
-        const auto& c = context.geometry.corners[id];
-        Eigen::Vector3d closest;
-        context.squaredDistance(center, c, &closest);
-        const double d_min = detail::cubeTriangleLowerBound(center, half, c[0], c[1], c[2], closest);
-        keys.push_back(std::uint64_t(quantizeEntryBound(d_min, unit)) << 32 | std::uint32_t(id));
-      }
-      std::sort(keys.begin(), keys.end());
-      group.bounds.resize(keys.size());
-      for (std::size_t n = 0; n < keys.size(); ++n) {
-        group.bounds[n] = std::uint8_t(keys[n] >> 32);
-        group.ids[n] = std::int32_t(keys[n] & 0xffffffffu);
-      }
+      group.center = cell.min_corner + Eigen::Vector3d::Constant(half);
+      group.half = half;
+      group.depth = cell.depth;
       groups[r].push_back(std::move(group));
     }
   });
@@ -1290,6 +1293,46 @@ void fitListsInBudget(const BuildContext& context, const RegionTree& tree, std::
     merged[choice.r][choice.index] = 1;
     bytes -= before - after;
   }
+
+  // The merged lists' bounds, from the whole cell (a lower bound for each of its children), in the children's
+  // unit, sorted by (bound, id) as every list.
+  tbb::parallel_for(std::int64_t(0), root_count, [&](std::int64_t r) {
+    std::vector<std::uint64_t>& keys = scratches.local().sort_keys;
+    for (std::size_t g = 0; g < groups[r].size(); ++g) {
+      if (!merged[r][g]) continue;
+      Group& group = groups[r][g];
+      const double unit = tree.entryBoundUnit(group.depth + 1);
+      keys.clear();
+      // The closest points to the center four at a time where the kernels allow (the same bits).
+      const std::size_t count = group.ids.size();
+      for (std::size_t k = 0; k < count; k += 4) {
+        const int lanes = int(std::min<std::size_t>(4, count - k));
+        Eigen::Vector3d closest[4];
+        if (context.four != nullptr) {
+          const std::array<Eigen::Vector3d, 3>* triangles[4];
+          for (int j = 0; j < 4; ++j) triangles[j] = &context.geometry.corners[group.ids[k + (j < lanes ? j : 0)]];
+          double squared[4];
+          context.four(group.center, triangles, squared, closest);
+        } else {
+          for (int j = 0; j < lanes; ++j) {
+            context.squaredDistance(group.center, context.geometry.corners[group.ids[k + j]], &closest[j]);
+          }
+        }
+        for (int j = 0; j < lanes; ++j) {
+          const std::int32_t id = group.ids[k + j];
+          const auto& c = context.geometry.corners[id];
+          const double d_min = detail::cubeTriangleLowerBound(group.center, group.half, c[0], c[1], c[2], closest[j]);
+          keys.push_back(std::uint64_t(quantizeEntryBound(d_min, unit)) << 32 | std::uint32_t(id));
+        }
+      }
+      std::sort(keys.begin(), keys.end());
+      group.bounds.resize(keys.size());
+      for (std::size_t n = 0; n < keys.size(); ++n) {
+        group.bounds[n] = std::uint8_t(keys[n] >> 32);
+        group.ids[n] = std::int32_t(keys[n] & 0xffffffffu);
+      }
+    }
+  });
 
   // Drops, farthest leaves first (a merged group's list goes with its last leaf), while still exceeded.
   std::vector<std::vector<std::uint32_t>> group_of(subtrees.size());  // per leaf: 1 + merged group, or 0

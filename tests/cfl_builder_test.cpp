@@ -817,6 +817,14 @@ TEST(CflBuilder, ALongThinPipeStaysWithinTheRegionsBudgetAndExact) {
     EXPECT_EQ(users[tree.leaf_list[leaf]], 1) << "leaf " << leaf << " touches the pipe and shares its list";
   }
   EXPECT_EQ(checkConservative(model, pipe, 1500, 71, "long pipe"), 0);
+  // Which lists merge or go does not depend on the workers.
+  BuildOptions one_thread = options(0, true);
+  one_thread.threads = 1;
+  const CflModel serial = buildCflModel(pipe, one_thread);
+  EXPECT_EQ(serial.regions.leaf_list, tree.leaf_list);
+  EXPECT_EQ(serial.regions.list_offsets, tree.list_offsets);
+  EXPECT_EQ(serial.regions.list_entry_ids, tree.list_entry_ids);
+  EXPECT_EQ(serial.regions.list_entry_bounds, tree.list_entry_bounds);
 
   // Against brute force: a small torus at several distances from the pipe, at random places along it and
   // random orientations.

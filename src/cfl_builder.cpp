@@ -360,6 +360,14 @@ constexpr double kNearCells = 4;
 constexpr std::uint32_t kLongestNearList = 256;
 constexpr std::uint32_t kLongestFarList = 64;
 constexpr int kDeepest = 20;  // levels below the root, within RegionTree::kMaxDepth
+// What an adaptive build's regions (nodes, leaf arrays and lists) may hold: this much plus so much per
+// triangle (see fitListsInBudget). Around a thin part (a long pipe, a rod) every leaf a few of its edges
+// away lists a whole stretch of the part's circumference, since the cell is wider than the part and the
+// conservative tests cannot tell the part's far side from its near side: those leaves took the model past
+// twice an OBBRSS hierarchy while the lists next to the surface cost what they cost elsewhere. The fixed
+// part spares small meshes, whose root grid alone is a large share of their model.
+constexpr std::int64_t kListBudgetBytes = std::int64_t(1) << 20;
+constexpr std::int64_t kListBudgetBytesPerTriangle = 688;
 // What computeCellList returns for a cell certain to split, whose list it did not compute.
 constexpr std::uint32_t kCertainSplit = RegionTree::kNoList - 1;
 
@@ -1147,6 +1155,254 @@ class SubtreeBuilder {
   bool adaptive_;
 };
 
+// Keeps an adaptive build's regions within `budget` bytes (see kListBudgetBytes), counting every list as
+// stored (identical lists are stored once, so the model may come out smaller). Past it, first the eight
+// leaves of a split cell share one list, the union of theirs with bounds from the whole cell (valid for each
+// of them, in their unit), which the flattening stores once: around a thin part eight neighbouring lists
+// mostly name the same stretch of it, so the union costs little more than one of them. Each leaf keeps its
+// own lower bound and corner distances, which prune most of a query. The cells farthest from the mesh go
+// first: their lists serve only farther queries, and the lists next to the surface, which short-range
+// queries scan, stay as they are. If that is not enough, the lists farthest from the mesh are dropped
+// (RegionTree::kNoList: queries take the Bvh there). Ties go by position, so that the result does not depend
+// on the number of workers.
+void fitListsInBudget(const BuildContext& context, const RegionTree& tree, std::vector<Subtree>& subtrees,
+                      std::int64_t budget) {
+  // A leaf's node and arrays (RegionTree: nodes, leaf_list, leaf_lower_bound, leaf_corner_distance), and a
+  // stored list's offset, base and entries (ids and bounds).
+  constexpr std::int64_t kLeafBytes = sizeof(std::uint32_t) * 2 + sizeof(float) +
+                                      sizeof(decltype(RegionTree::leaf_corner_distance)::value_type);
+  auto listBytes = [](std::int64_t length) {
+    return std::int64_t(sizeof(std::uint32_t) + 2 * sizeof(std::uint16_t)) +
+           length * std::int64_t(sizeof(std::uint16_t) + sizeof(std::uint8_t));
+  };
+  const std::int64_t root_count = std::int64_t(subtrees.size());
+  std::int64_t bytes = std::int64_t(sizeof(std::uint32_t)) * root_count;
+  for (const Subtree& subtree : subtrees) {
+    bytes += std::int64_t(sizeof(std::uint32_t)) * (std::int64_t(subtree.nodes.size()) - 1) +
+             kLeafBytes * std::int64_t(subtree.list_length.size());
+    for (std::uint32_t length : subtree.list_length) {
+      if (length != RegionTree::kNoList) bytes += listBytes(length);
+    }
+  }
+  if (bytes <= budget) return;
+
+  // Per subtree: where each leaf's list starts in subtree.lists, and the cells whose eight children are
+  // leaves that all store a list, with the union of those lists.
+  struct Group {
+    std::vector<std::uint32_t> leaves;  // the cell's children that are leaves with a list
+    float lower_bound;                  // the smallest of theirs
+    Eigen::Vector3d center;             // the cell's
+    double half;
+    int depth;
+    std::vector<std::int32_t> ids;      // the union of the lists, by id; by (bound, id) once merged
+    std::vector<std::uint8_t> bounds;   // computed only for the groups that merge
+  };
+  std::vector<std::vector<std::size_t>> list_begin(subtrees.size());
+  std::vector<std::vector<Group>> groups(subtrees.size());
+  tbb::enumerable_thread_specific<ListScratch> scratches;
+  struct Stamps {
+    std::vector<std::uint32_t> stamp;  // per triangle: the last union that took it
+    std::uint32_t last = 0;
+  };
+  tbb::enumerable_thread_specific<Stamps> stamps_per_worker;
+  tbb::parallel_for(std::int64_t(0), root_count, [&](std::int64_t r) {
+    const Subtree& subtree = subtrees[r];
+    std::vector<std::size_t>& begin = list_begin[r];
+    begin.resize(subtree.list_length.size() + 1);
+    begin[0] = 0;
+    for (std::size_t leaf = 0; leaf < subtree.list_length.size(); ++leaf) {
+      const std::uint32_t length = subtree.list_length[leaf];
+      begin[leaf + 1] = begin[leaf] + (length == RegionTree::kNoList ? 0 : length);
+    }
+    const int i = int(r % tree.root_dims[0]);
+    const int j = int((r / tree.root_dims[0]) % tree.root_dims[1]);
+    const int k = int(r / (std::int64_t(tree.root_dims[0]) * tree.root_dims[1]));
+    struct Pending {
+      std::uint32_t node;
+      int depth;
+      Eigen::Vector3d min_corner;
+    };
+    std::vector<Pending> stack{{0, 0, tree.origin + tree.root_size * Eigen::Vector3d(i, j, k)}};
+    while (!stack.empty()) {
+      const Pending cell = stack.back();
+      stack.pop_back();
+      const std::uint32_t value = subtree.nodes[cell.node];
+      if (value & RegionTree::kLeafBit) continue;
+      const double half = 0.5 * tree.cellSize(cell.depth);
+      Group group;
+      for (int octant = 0; octant < 8; ++octant) {
+        const std::uint32_t child = subtree.nodes[value + octant];
+        if (!(child & RegionTree::kLeafBit)) {
+          stack.push_back({value + std::uint32_t(octant), cell.depth + 1,
+                           cell.min_corner + half * Eigen::Vector3d(octant & 1, (octant >> 1) & 1, octant >> 2)});
+        } else if (subtree.list_length[child & ~RegionTree::kLeafBit] != RegionTree::kNoList) {
+          group.leaves.push_back(child & ~RegionTree::kLeafBit);
+        }
+      }
+      if (group.leaves.size() < 2) continue;
+      // The union in first-seen order (the merged list is sorted by its bounds later), each id once by a stamp
+      // per triangle: sorting every candidate's ids took most of this step.
+      Stamps& stamps = stamps_per_worker.local();
+      if (stamps.stamp.empty() || stamps.last == std::numeric_limits<std::uint32_t>::max()) {
+        stamps.stamp.assign(context.geometry.mesh.triangles.size(), 0);
+        stamps.last = 0;
+      }
+      const std::uint32_t stamp = ++stamps.last;
+      group.lower_bound = std::numeric_limits<float>::max();
+      for (const std::uint32_t leaf : group.leaves) {
+        group.lower_bound = std::min(group.lower_bound, subtree.lower_bound[leaf]);
+        for (std::size_t n = begin[leaf]; n < begin[leaf + 1]; ++n) {
+          const std::int32_t id = subtree.lists.ids[n];
+          if (stamps.stamp[id] == stamp) continue;
+          stamps.stamp[id] = stamp;
+          group.ids.push_back(id);
+        }
+      }
+      group.center = cell.min_corner + Eigen::Vector3d::Constant(half);
+      group.half = half;
+      group.depth = cell.depth;
+      groups[r].push_back(std::move(group));
+    }
+  });
+
+  // Merges, farthest cells first, while it saves and the budget is exceeded.
+  struct Choice {
+    float lower_bound;
+    std::int64_t r;
+    std::uint32_t index;  // of the group, or of the leaf
+  };
+  std::vector<Choice> order;
+  for (std::int64_t r = 0; r < root_count; ++r) {
+    for (std::uint32_t g = 0; g < groups[r].size(); ++g) order.push_back({groups[r][g].lower_bound, r, g});
+  }
+  auto farthestFirst = [](const Choice& a, const Choice& b) {
+    if (a.lower_bound != b.lower_bound) return a.lower_bound > b.lower_bound;
+    return a.r != b.r ? a.r < b.r : a.index < b.index;
+  };
+  std::sort(order.begin(), order.end(), farthestFirst);
+  std::vector<std::vector<std::uint8_t>> merged(subtrees.size());
+  for (std::int64_t r = 0; r < root_count; ++r) merged[r].assign(groups[r].size(), 0);
+  for (const Choice& choice : order) {
+    if (bytes <= budget) break;
+    const Subtree& subtree = subtrees[choice.r];
+    const Group& group = groups[choice.r][choice.index];
+    std::int64_t before = 0;
+    for (const std::uint32_t leaf : group.leaves) before += listBytes(subtree.list_length[leaf]);
+    const std::int64_t after = listBytes(std::int64_t(group.ids.size()));
+    if (after >= before) continue;
+    merged[choice.r][choice.index] = 1;
+    bytes -= before - after;
+  }
+
+  // The merged lists' bounds, from the whole cell (a lower bound for each of its children), in the children's
+  // unit, sorted by (bound, id) as every list.
+  tbb::parallel_for(std::int64_t(0), root_count, [&](std::int64_t r) {
+    std::vector<std::uint64_t>& keys = scratches.local().sort_keys;
+    for (std::size_t g = 0; g < groups[r].size(); ++g) {
+      if (!merged[r][g]) continue;
+      Group& group = groups[r][g];
+      const double unit = tree.entryBoundUnit(group.depth + 1);
+      keys.clear();
+      // The closest points to the center four at a time where the kernels allow (the same bits).
+      const std::size_t count = group.ids.size();
+      for (std::size_t k = 0; k < count; k += 4) {
+        const int lanes = int(std::min<std::size_t>(4, count - k));
+        Eigen::Vector3d closest[4];
+        if (context.four != nullptr) {
+          const std::array<Eigen::Vector3d, 3>* triangles[4];
+          for (int j = 0; j < 4; ++j) triangles[j] = &context.geometry.corners[group.ids[k + (j < lanes ? j : 0)]];
+          double squared[4];
+          context.four(group.center, triangles, squared, closest);
+        } else {
+          for (int j = 0; j < lanes; ++j) {
+            context.squaredDistance(group.center, context.geometry.corners[group.ids[k + j]], &closest[j]);
+          }
+        }
+        for (int j = 0; j < lanes; ++j) {
+          const std::int32_t id = group.ids[k + j];
+          const auto& c = context.geometry.corners[id];
+          const double d_min = detail::cubeTriangleLowerBound(group.center, group.half, c[0], c[1], c[2], closest[j]);
+          keys.push_back(std::uint64_t(quantizeEntryBound(d_min, unit)) << 32 | std::uint32_t(id));
+        }
+      }
+      std::sort(keys.begin(), keys.end());
+      group.bounds.resize(keys.size());
+      for (std::size_t n = 0; n < keys.size(); ++n) {
+        group.bounds[n] = std::uint8_t(keys[n] >> 32);
+        group.ids[n] = std::int32_t(keys[n] & 0xffffffffu);
+      }
+    }
+  });
+
+  // Drops, farthest leaves first (a merged group's list goes with its last leaf), while still exceeded.
+  std::vector<std::vector<std::uint32_t>> group_of(subtrees.size());  // per leaf: 1 + merged group, or 0
+  std::vector<std::vector<std::uint8_t>> dropped(subtrees.size());
+  std::vector<std::vector<std::uint8_t>> group_left(subtrees.size());  // per group: its leaves still listing
+  order.clear();
+  for (std::int64_t r = 0; r < root_count; ++r) {
+    const Subtree& subtree = subtrees[r];
+    group_of[r].assign(subtree.list_length.size(), 0);
+    dropped[r].assign(subtree.list_length.size(), 0);
+    group_left[r].resize(groups[r].size());
+    for (std::uint32_t g = 0; g < groups[r].size(); ++g) {
+      group_left[r][g] = std::uint8_t(groups[r][g].leaves.size());
+      if (!merged[r][g]) continue;
+      for (const std::uint32_t leaf : groups[r][g].leaves) group_of[r][leaf] = g + 1;
+    }
+    if (bytes <= budget) continue;
+    for (std::uint32_t leaf = 0; leaf < subtree.list_length.size(); ++leaf) {
+      if (subtree.list_length[leaf] != RegionTree::kNoList) order.push_back({subtree.lower_bound[leaf], r, leaf});
+    }
+  }
+  std::sort(order.begin(), order.end(), farthestFirst);
+  for (const Choice& choice : order) {
+    if (bytes <= budget) break;
+    dropped[choice.r][choice.index] = 1;
+    const std::uint32_t g = group_of[choice.r][choice.index];
+    if (g == 0) {
+      bytes -= listBytes(subtrees[choice.r].list_length[choice.index]);
+    } else if (--group_left[choice.r][g - 1] == 0) {
+      bytes -= listBytes(std::int64_t(groups[choice.r][g - 1].ids.size()));
+    }
+  }
+
+  // Rewrites the lists of the subtrees that changed, and their hashes.
+  tbb::parallel_for(std::int64_t(0), root_count, [&](std::int64_t r) {
+    Subtree& subtree = subtrees[r];
+    bool changed = false;
+    for (std::uint32_t leaf = 0; leaf < subtree.list_length.size(); ++leaf) {
+      changed = changed || dropped[r][leaf] || group_of[r][leaf] != 0;
+    }
+    if (!changed) return;
+    CellListOutput lists;
+    subtree.list_hash.clear();
+    for (std::uint32_t leaf = 0; leaf < subtree.list_length.size(); ++leaf) {
+      std::uint32_t& length = subtree.list_length[leaf];
+      if (length == RegionTree::kNoList) continue;
+      if (dropped[r][leaf]) {
+        length = RegionTree::kNoList;
+        continue;
+      }
+      const std::size_t begin = lists.ids.size();
+      if (const std::uint32_t g = group_of[r][leaf]) {
+        const Group& group = groups[r][g - 1];
+        lists.ids.insert(lists.ids.end(), group.ids.begin(), group.ids.end());
+        lists.bounds.insert(lists.bounds.end(), group.bounds.begin(), group.bounds.end());
+        length = std::uint32_t(group.ids.size());
+      } else {
+        const auto from = std::ptrdiff_t(list_begin[r][leaf]);
+        lists.ids.insert(lists.ids.end(), subtree.lists.ids.begin() + from, subtree.lists.ids.begin() + from + length);
+        lists.bounds.insert(lists.bounds.end(), subtree.lists.bounds.begin() + from,
+                            subtree.lists.bounds.begin() + from + length);
+      }
+      subtree.list_hash.push_back(listHash(lists.ids.data() + begin, lists.bounds.data() + begin, length,
+                                           subtree.depth[leaf]));
+    }
+    subtree.lists.ids = std::move(lists.ids);
+    subtree.lists.bounds = std::move(lists.bounds);
+  });
+}
+
 }  // namespace
 
 CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
@@ -1284,6 +1540,12 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   });
   root_corner_distance = {};
   root_corner_triangle = {};
+  if (adaptive) {
+    arena.execute([&] {
+      fitListsInBudget(context, tree, subtrees,
+                       kListBudgetBytes + kListBudgetBytesPerTriangle * std::int64_t(geometry.corners.size()));
+    });
+  }
   arena.execute([&] { sign_task.wait(); });
 
   // 3. Flatten: root cells first, then each root cell's descendants in turn; identical lists (same ids,

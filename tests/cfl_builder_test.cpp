@@ -4,10 +4,12 @@
 // pays, consistent statistics, thread-independent results and a well-behaved progress callback.
 
 #include "cfl/cfl_model.h"
+#include "cfl/cfl_query.h"
 #include "cfl/query_kernels.h"
 #include "../src/detail/builder_test_hooks.h"
 #include "support/test_meshes.h"
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -751,6 +753,100 @@ TEST(CflBuilder, AMemoryLimitCoarsensButKeepsListsConservative) {
   EXPECT_TRUE(model.statistics.coarsened);
   EXPECT_FALSE(buildCflModel(knot, options(0)).statistics.coarsened);
   EXPECT_EQ(checkConservative(model, knot, 500, 51, "knot under a memory limit"), 0);
+}
+
+// A closed pipe `length` long of radius `radius` along z, `sides` around and `rings` rings, caps fanned from
+// their centers: a long thin part like the suite's pipe, whose cells a few edges away list a whole stretch
+// of its circumference.
+TriangleMesh makeLongPipe(double length, double radius, int sides, int rings) {
+  const double pi = std::acos(-1.0);
+  TriangleMesh mesh;
+  for (int i = 0; i < rings; ++i) {
+    for (int k = 0; k < sides; ++k) {
+      const double t = 2 * pi * k / sides;
+      mesh.vertices.push_back(Eigen::Vector3d(radius * std::sin(t), radius * std::cos(t), length * i / (rings - 1)));
+    }
+  }
+  auto ring = [&](int i, int k) { return i * sides + k % sides; };
+  for (int i = 0; i + 1 < rings; ++i) {
+    for (int k = 0; k < sides; ++k) {
+      mesh.triangles.push_back({ring(i, k), ring(i, k + 1), ring(i + 1, k + 1)});
+      mesh.triangles.push_back({ring(i, k), ring(i + 1, k + 1), ring(i + 1, k)});
+    }
+  }
+  const int bottom = static_cast<int>(mesh.vertices.size());
+  mesh.vertices.push_back(Eigen::Vector3d(0, 0, 0));
+  mesh.vertices.push_back(Eigen::Vector3d(0, 0, length));
+  for (int k = 0; k < sides; ++k) {
+    mesh.triangles.push_back({bottom, ring(0, k + 1), ring(0, k)});
+    mesh.triangles.push_back({bottom + 1, ring(rings - 1, k), ring(rings - 1, k + 1)});
+  }
+  return mesh;
+}
+
+// Around a long thin pipe the cells a few of their edges away list much of its circumference: unchecked,
+// their lists took the model to about three times an FCL OBBRSS hierarchy (556 bytes per triangle). The
+// regions' budget keeps it within twice that, by letting the leaves of a cell share one list (farthest
+// first) before dropping any, and leaves the lists next to the surface alone. The lists stay conservative,
+// their bounds valid for every leaf that shares them, and distances exact.
+TEST(CflBuilder, ALongThinPipeStaysWithinTheRegionsBudgetAndExact) {
+  const TriangleMesh pipe = makeLongPipe(300.0, 0.5, 16, 400);
+  const std::int64_t triangles = std::int64_t(pipe.triangles.size());
+  ASSERT_EQ(triangles, 12800);
+  const CflModel model = buildCflModel(pipe, options(0, true));
+  const BuildStatistics& s = model.statistics;
+  EXPECT_LE(double(s.memory_bytes) / double(triangles), 2 * 556.0);
+  const RegionTree& tree = model.regions;
+  std::int64_t regions_bytes = std::int64_t(tree.nodes.capacity() * sizeof(std::uint32_t) +
+                                            tree.leaf_list.capacity() * sizeof(std::uint32_t) +
+                                            tree.leaf_lower_bound.capacity() * sizeof(float) +
+                                            tree.leaf_corner_distance.capacity() * 16 +
+                                            tree.list_offsets.capacity() * sizeof(std::uint32_t) +
+                                            tree.list_entry_ids.capacity() * 2 + tree.list_high_ids.capacity() * 2 +
+                                            tree.list_entry_bounds.capacity());
+  EXPECT_LE(regions_bytes, (std::int64_t(1) << 20) + 688 * triangles);
+  // Shared lists, and every leaf that touches the mesh keeps a list of its own.
+  std::vector<int> users(tree.listCount(), 0);
+  for (std::int64_t leaf = 0; leaf < tree.leafCount(); ++leaf) {
+    if (tree.hasList(std::uint32_t(leaf))) ++users[tree.leaf_list[leaf]];
+  }
+  EXPECT_LT(s.distinct_lists, tree.leafCount() - s.leaves_without_list);
+  for (std::int64_t leaf = 0; leaf < tree.leafCount(); ++leaf) {
+    if (tree.leaf_lower_bound[leaf] > 0) continue;
+    ASSERT_TRUE(tree.hasList(std::uint32_t(leaf))) << "leaf " << leaf << " touches the pipe and has no list";
+    EXPECT_EQ(users[tree.leaf_list[leaf]], 1) << "leaf " << leaf << " touches the pipe and shares its list";
+  }
+  EXPECT_EQ(checkConservative(model, pipe, 1500, 71, "long pipe"), 0);
+  // Which lists merge or go does not depend on the workers.
+  BuildOptions one_thread = options(0, true);
+  one_thread.threads = 1;
+  const CflModel serial = buildCflModel(pipe, one_thread);
+  EXPECT_EQ(serial.regions.leaf_list, tree.leaf_list);
+  EXPECT_EQ(serial.regions.list_offsets, tree.list_offsets);
+  EXPECT_EQ(serial.regions.list_entry_ids, tree.list_entry_ids);
+  EXPECT_EQ(serial.regions.list_entry_bounds, tree.list_entry_bounds);
+
+  // Against brute force: a small torus at several distances from the pipe, at random places along it and
+  // random orientations.
+  const TriangleMesh torus = test::makeTorus(1.0, 0.3, 12, 6);
+  const MeshModel other = makeMeshModel(torus);
+  test::Rng rng(72);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const double diagonal = boundingBox(pipe).diagonal();
+  for (double gap : {0.0, 0.3, 1.5, 4.0, 6.0, 9.0, 20.0, 60.0}) {
+    for (int repeat = 0; repeat < 2; ++repeat) {
+      const double angle = 2 * std::acos(-1.0) * unit(rng);
+      Eigen::Isometry3d X_WB = Eigen::Isometry3d::Identity();
+      const Eigen::Vector3d axis = Eigen::Vector3d(unit(rng) - 0.5, unit(rng) - 0.5, unit(rng) - 0.5).normalized();
+      X_WB.linear() = Eigen::AngleAxisd(2 * std::acos(-1.0) * unit(rng), axis).toRotationMatrix();
+      // The torus reaches 1.3 from its center: its center at 1.8 + gap from the axis is about gap away.
+      X_WB.translation() = Eigen::Vector3d((1.8 + gap) * std::cos(angle), (1.8 + gap) * std::sin(angle),
+                                           300 * unit(rng));
+      const DistanceResult truth = bruteForceDistance(model.geometry, Eigen::Isometry3d::Identity(), other, X_WB);
+      const DistanceResult r = computeDistance(model, Eigen::Isometry3d::Identity(), other, X_WB);
+      EXPECT_NEAR(r.distance, truth.distance, 1e-9 * diagonal) << "gap " << gap << ", repeat " << repeat;
+    }
+  }
 }
 
 TEST(CflBuilder, ProgressIsReportedOnTheCallingThreadNondecreasingAndEndsAtOne) {

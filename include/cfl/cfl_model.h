@@ -88,7 +88,12 @@ struct CflModel {
 /// eight while its list holds more than 8 triangles, it is larger than 2 mean edges of those triangles,
 /// and it is larger than half its distance from the mesh. A leaf whose list is still longer than 256
 /// triangles within 4 of its edges from the mesh, or 64 farther out, stores none (RegionTree::kNoList);
-/// queries use the Bvh there.
+/// queries use the Bvh there. The regions (nodes, leaf arrays and lists) are kept within 1 MiB plus 688 bytes
+/// per triangle, which meshes with much empty space around thin parts (a long pipe) reach first: past it,
+/// the leaves of one cell share a single list, the union of theirs with entry bounds taken from the whole
+/// cell, starting with the cells farthest from the mesh, and if that is not enough the lists farthest from
+/// the mesh are dropped. The lists of the leaves nearest the surface, which short-range queries read, are
+/// the last to change.
 ///
 /// Throws cfl::Error for an invalid mesh (see validateMesh), resolution < 0, padding < 1 or not finite, a
 /// negative memory_limit, or a uniform grid whose cells alone would exceed the memory limit (the message

@@ -1070,24 +1070,41 @@ class Search {
     };
     const auto& nodes_a = mesh_a_.bvh.nodes;
     const auto& nodes_b = b_.bvh.nodes;
-    // Only where B holds triangles about as large as itself (its largest leaf, found down the larger child),
-    // whose spheres reach A wherever they lie and leave the grid's bounds at 0 over most of B: the search
-    // then spreads over B breadth-first. Over smaller triangles the grid's bounds find the crossing
-    // triangles sooner than this descent, and it would only add its cost.
-    int largest = 0;
-    while (!nodes_b[largest].isLeaf()) {
-      const int first = nodes_b[largest].first;
-      largest = nodes_b[first + 1].radius > nodes_b[first].radius ? first + 1 : first;
-    }
-    if (!(nodes_b[largest].radius >= kContactProbeLargeLeaf * nodes_b[0].radius)) return;
+    // The radius of the leaf reached down the larger (or smaller) child at every level, as a share of the
+    // root's: an estimate of the mesh's largest (or smallest) leaf.
+    auto leafShare = [](const std::vector<BvhNode>& nodes, bool larger) {
+      int n = 0;
+      while (!nodes[n].isLeaf()) {
+        const int first = nodes[n].first;
+        n = (nodes[first + 1].radius > nodes[first].radius) == larger ? first + 1 : first;
+      }
+      return nodes[n].radius / nodes[0].radius;
+    };
+    // Only where B holds triangles about as large as itself (its largest leaf), whose spheres reach A
+    // wherever they lie and leave the grid's bounds at 0 over most of B: the search then spreads over B
+    // breadth-first. Over smaller triangles the grid's bounds find the crossing triangles sooner than this
+    // descent, and it would only add its cost. Or where either mesh is a fan, every leaf of it as large
+    // (slivers fanned about one vertex: each wedge of the fan reaches from its hub to its rim, so nodes of
+    // the fan do not shrink as they split): node pairs with a fan of A then split A's wedges, which keep
+    // their radius, before the other mesh, and spread over the whole fan before any triangle pair is met.
+    const bool fan_a = leafShare(nodes_a, false) >= kContactProbeLargeLeaf;
+    const bool large_b = leafShare(nodes_b, true) >= kContactProbeLargeLeaf;
+    const bool fan_b = large_b && leafShare(nodes_b, false) >= kContactProbeLargeLeaf;
+    if (!large_b && !fan_a) return;
     // And only where the two roots' oriented boxes overlap deeply for their size: near contact but apart, or
     // where a small B lies anywhere inside A's box, the descent runs its whole budget for nothing. Their size
     // is at most the thicker root box's thinnest extent: two crossing slabs overlap by about their
     // thickness however wide they are, so that the radius alone kept the descent from every such pose.
+    // With a fan, any overlap of the roots: a fan is flat or nearly so, and a mesh crossing it overlaps its
+    // box by no more than the part of that mesh that reaches through, however deep the crossing looks.
     const double root = nodePairLowerBound(0, place(0, X_AB_.apply(nodes_b[0].center)), kInfinity);
     const double size = std::min(std::max(nodes_b[0].radius, nodes_a[0].radius),
                                  2 * std::max(nodes_a[0].obb_half.minCoeff(), nodes_b[0].obb_half.minCoeff()));
-    if (!(root < -kContactProbeOverlap * size)) return;
+    if (!(root < (fan_a || fan_b ? 0 : -kContactProbeOverlap * size))) return;
+    // Against a fan, the other mesh splits first, down to its leaves: a small box of it that crosses the fan
+    // then meets few of the wedges, where a wedge split first meets the other mesh's whole box wherever that
+    // lies along the wedge. Otherwise the larger node splits, by sphere radius.
+    const bool fan_last = fan_a != fan_b;
     PairStep stack[128];
     int top = 0;
     stack[top++] = {0, 0};
@@ -1107,7 +1124,8 @@ class Search {
       }
       if (budget <= 0 || top + 2 > 128) continue;
       budget -= 2;
-      const bool a_splits = !node_a.isLeaf() && (node_b.isLeaf() || node_a.radius >= node_b.radius);
+      const bool a_splits =
+          !node_a.isLeaf() && (node_b.isLeaf() || (fan_last ? fan_b : node_a.radius >= node_b.radius));
       double bounds[2];
       PairStep children[2];
       if (a_splits) {

@@ -57,6 +57,8 @@ constexpr int kTriangleWalkNodes = 64;
 constexpr int kContactProbeBounds = 128;
 constexpr double kContactProbeLargeLeaf = 0.3;
 constexpr double kContactProbeOverlap = 0.85;
+// The descent tests only triangle pairs that may lie within this share of A's radius of each other.
+constexpr double kContactProbeTouching = 1e-9;
 // A node of B whose box meets at most kShortListLeaves leaves of A, whose lists hold at most
 // kShortListTriangles triangles together, is paired with those triangles (see pairWithShortLists).
 constexpr int kShortListTriangles = 8;
@@ -1105,6 +1107,10 @@ class Search {
     // then meets few of the wedges, where a wedge split first meets the other mesh's whole box wherever that
     // lies along the wedge. Otherwise the larger node splits, by sphere radius.
     const bool fan_last = fan_a != fan_b;
+    // Leaf pairs test only the triangle pairs that may touch (within a hair of the scale, for the filter's
+    // rounding): boxes that overlap hold mostly pairs near each other, which pass the filter at the
+    // best distance so far and would each pay the exact test for an upper bound the search finds anyway.
+    const double touching = kContactProbeTouching * nodes_a[0].radius;
     PairStep stack[128];
     int top = 0;
     stack[top++] = {0, 0};
@@ -1117,7 +1123,7 @@ class Search {
         for (int n = node_b.first; n < node_b.first + node_b.count && best_ > 0; ++n) {
           const PreparedTriangle& tb = preparedAtLeaf(n);
           for (int m = node_a.first; m < node_a.first + node_a.count && best_ > 0; ++m) {
-            testPairIfCloseOutOfLine(mesh_a_.bvh.triangle_ids[m], tb);
+            testPairIfTouching(mesh_a_.bvh.triangle_ids[m], tb, touching);
           }
         }
         continue;
@@ -1380,6 +1386,11 @@ class Search {
   // testPairIfClose for the rare steps below: a further inlined copy tipped GCC into keeping every copy out
   // of line, the hot loops' included.
   CFL_NOINLINE void testPairIfCloseOutOfLine(int a, const PreparedTriangle& tb) { testPairIfClose(a, tb); }
+  // The contact probe's pair test: only a pair that may lie within `touching` (a length near 0) of each
+  // other, by mayBeCloser's bounds.
+  CFL_NOINLINE void testPairIfTouching(int a, const PreparedTriangle& tb, double touching) {
+    if (mayBeCloser(a, tb, std::min(touching, pruneThreshold()))) testPair(a, tb);
+  }
 
   // The rarer steps of expand, out of line: inlined, they made expand too large for GCC to inline into
   // runHierarchical, which then paid a call and its register saves on every step.

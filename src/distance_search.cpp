@@ -53,11 +53,13 @@ constexpr int kTriangleWalkNodes = 64;
 // radius, or of the thicker root box's thinnest extent where that is less (a part much smaller than A
 // overlaps A's root box wherever it lies within it). Looser gates (an overlap of half or 0.7 of the radius,
 // or any B) also let in poses near contact but apart (a ground plane under a bunny) and overlapping compact
-// meshes, where the descent runs its whole budget for nothing.
+// meshes, where the descent runs its whole budget for nothing. It also runs where either mesh is a fan
+// (its smallest leaf, too, has kContactProbeLargeLeaf of its radius), on any overlap of the roots.
 constexpr int kContactProbeBounds = 128;
 constexpr double kContactProbeLargeLeaf = 0.3;
 constexpr double kContactProbeOverlap = 0.85;
-// The descent tests only triangle pairs that may lie within this share of A's radius of each other.
+// The descent tests only triangle pairs that may lie within this share of A's radius of each other: a
+// hair above 0, so that rounding in the filter's bounds does not turn away a pair that touches.
 constexpr double kContactProbeTouching = 1e-9;
 // A node of B whose box meets at most kShortListLeaves leaves of A, whose lists hold at most
 // kShortListTriangles triangles together, is paired with those triangles (see pairWithShortLists).
@@ -1107,9 +1109,11 @@ class Search {
     // then meets few of the wedges, where a wedge split first meets the other mesh's whole box wherever that
     // lies along the wedge. Otherwise the larger node splits, by sphere radius.
     const bool fan_last = fan_a != fan_b;
-    // Leaf pairs test only the triangle pairs that may touch (within a hair of the scale, for the filter's
-    // rounding): boxes that overlap hold mostly pairs near each other, which pass the filter at the
-    // best distance so far and would each pay the exact test for an upper bound the search finds anyway.
+    // With a fan, leaf pairs test only the triangle pairs that may touch (within a hair of the scale, for
+    // the filter's rounding): a small leaf near the hub meets every wedge, and its pairs with their slivers,
+    // all near each other, pass the filter at the best distance so far and would each pay the exact test.
+    // Without one, every pair the filter passes: where the descent finds no contact (the meshes apart), the
+    // pairs it tested leave the search an upper bound that prunes from the start.
     const double touching = kContactProbeTouching * nodes_a[0].radius;
     PairStep stack[128];
     int top = 0;
@@ -1123,7 +1127,11 @@ class Search {
         for (int n = node_b.first; n < node_b.first + node_b.count && best_ > 0; ++n) {
           const PreparedTriangle& tb = preparedAtLeaf(n);
           for (int m = node_a.first; m < node_a.first + node_a.count && best_ > 0; ++m) {
-            testPairIfTouching(mesh_a_.bvh.triangle_ids[m], tb, touching);
+            if (fan_a || fan_b) {
+              testPairIfTouching(mesh_a_.bvh.triangle_ids[m], tb, touching);
+            } else {
+              testPairIfCloseOutOfLine(mesh_a_.bvh.triangle_ids[m], tb);
+            }
           }
         }
         continue;

@@ -54,8 +54,11 @@ constexpr int kTriangleWalkNodes = 64;
 // overlaps A's root box wherever it lies within it). Looser gates (an overlap of half or 0.7 of the radius,
 // or any B) also let in poses near contact but apart (a ground plane under a bunny) and overlapping compact
 // meshes, where the descent runs its whole budget for nothing. It also runs where either mesh is a fan
-// (its smallest leaf, too, has kContactProbeLargeLeaf of its radius), on any overlap of the roots.
+// (its smallest leaf, too, has kContactProbeLargeLeaf of its radius), on any overlap of the roots, and then
+// takes up to kContactProbeFanBounds bounds: a leaf whose box crosses the fan where its triangles do not
+// (near the hub, where every wedge meets it) sends the descent back up more often than elsewhere.
 constexpr int kContactProbeBounds = 128;
+constexpr int kContactProbeFanBounds = 256;
 constexpr double kContactProbeLargeLeaf = 0.3;
 constexpr double kContactProbeOverlap = 0.85;
 // The descent tests only triangle pairs that may lie within this share of A's radius of each other: a
@@ -1067,7 +1070,8 @@ class Search {
   // pair that intersects: where the meshes overlap, that ends the query (distance 0 cannot be beaten), and
   // the best-first search, whose bounds are all 0 there, would otherwise spread over many pieces before it
   // tests one. Triangle pairs met on the way are tested as usual, so what the descent finds is at worst an
-  // upper bound for the search that follows; it prunes nothing, and stops after kContactProbeBounds bounds.
+  // upper bound for the search that follows; it prunes nothing, and stops after kContactProbeBounds bounds
+  // (kContactProbeFanBounds with a fan).
   void probeForContact() {
     struct PairStep {
       int node_b, node_a;
@@ -1118,7 +1122,7 @@ class Search {
     PairStep stack[128];
     int top = 0;
     stack[top++] = {0, 0};
-    int budget = kContactProbeBounds;
+    int budget = fan_a || fan_b ? kContactProbeFanBounds : kContactProbeBounds;
     while (top > 0 && best_ > 0) {
       const PairStep step = stack[--top];
       const BvhNode& node_a = nodes_a[step.node_a];

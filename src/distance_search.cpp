@@ -1078,15 +1078,23 @@ class Search {
     };
     const auto& nodes_a = mesh_a_.bvh.nodes;
     const auto& nodes_b = b_.bvh.nodes;
-    // The radius of the leaf reached down the larger (or smaller) child at every level, as a share of the
-    // root's: an estimate of the mesh's largest (or smallest) leaf.
-    auto leafShare = [](const std::vector<BvhNode>& nodes, bool larger) {
+    // B's largest leaf (found down the larger child) as a share of B's radius.
+    int largest = 0;
+    while (!nodes_b[largest].isLeaf()) {
+      const int first = nodes_b[largest].first;
+      largest = nodes_b[first + 1].radius > nodes_b[first].radius ? first + 1 : first;
+    }
+    // Whether a mesh is a fan: every node down the smaller child keeps kContactProbeLargeLeaf of the root's
+    // radius. Other meshes leave after the first few levels, near the root, where the search starts too.
+    auto isFan = [](const std::vector<BvhNode>& nodes) {
+      const double least = kContactProbeLargeLeaf * nodes[0].radius;
       int n = 0;
       while (!nodes[n].isLeaf()) {
         const int first = nodes[n].first;
-        n = (nodes[first + 1].radius > nodes[first].radius) == larger ? first + 1 : first;
+        n = nodes[first + 1].radius < nodes[first].radius ? first + 1 : first;
+        if (!(nodes[n].radius >= least)) return false;
       }
-      return nodes[n].radius / nodes[0].radius;
+      return true;
     };
     // Only where B holds triangles about as large as itself (its largest leaf), whose spheres reach A
     // wherever they lie and leave the grid's bounds at 0 over most of B: the search then spreads over B
@@ -1095,9 +1103,9 @@ class Search {
     // (slivers fanned about one vertex: each wedge of the fan reaches from its hub to its rim, so nodes of
     // the fan do not shrink as they split): node pairs with a fan of A then split A's wedges, which keep
     // their radius, before the other mesh, and spread over the whole fan before any triangle pair is met.
-    const bool fan_a = leafShare(nodes_a, false) >= kContactProbeLargeLeaf;
-    const bool large_b = leafShare(nodes_b, true) >= kContactProbeLargeLeaf;
-    const bool fan_b = large_b && leafShare(nodes_b, false) >= kContactProbeLargeLeaf;
+    const bool large_b = nodes_b[largest].radius >= kContactProbeLargeLeaf * nodes_b[0].radius;
+    const bool fan_a = isFan(nodes_a);
+    const bool fan_b = large_b && isFan(nodes_b);
     if (!large_b && !fan_a) return;
     // And only where the two roots' oriented boxes overlap deeply for their size: near contact but apart, or
     // where a small B lies anywhere inside A's box, the descent runs its whole budget for nothing. Their size

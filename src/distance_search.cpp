@@ -53,10 +53,17 @@ constexpr int kTriangleWalkNodes = 64;
 // radius, or of the thicker root box's thinnest extent where that is less (a part much smaller than A
 // overlaps A's root box wherever it lies within it). Looser gates (an overlap of half or 0.7 of the radius,
 // or any B) also let in poses near contact but apart (a ground plane under a bunny) and overlapping compact
-// meshes, where the descent runs its whole budget for nothing.
+// meshes, where the descent runs its whole budget for nothing. It also runs where either mesh is a fan
+// (its smallest leaf, too, has kContactProbeLargeLeaf of its radius), on any overlap of the roots, and then
+// takes up to kContactProbeFanBounds bounds: a leaf whose box crosses the fan where its triangles do not
+// (near the hub, where every wedge meets it) sends the descent back up more often than elsewhere.
 constexpr int kContactProbeBounds = 128;
+constexpr int kContactProbeFanBounds = 256;
 constexpr double kContactProbeLargeLeaf = 0.3;
 constexpr double kContactProbeOverlap = 0.85;
+// The descent tests only triangle pairs that may lie within this share of A's radius of each other: a
+// hair above 0, so that rounding in the filter's bounds does not turn away a pair that touches.
+constexpr double kContactProbeTouching = 1e-9;
 // A node of B whose box meets at most kShortListLeaves leaves of A, whose lists hold at most
 // kShortListTriangles triangles together, is paired with those triangles (see pairWithShortLists).
 constexpr int kShortListTriangles = 8;
@@ -1076,35 +1083,67 @@ class Search {
   // pair that intersects: where the meshes overlap, that ends the query (distance 0 cannot be beaten), and
   // the best-first search, whose bounds are all 0 there, would otherwise spread over many pieces before it
   // tests one. Triangle pairs met on the way are tested as usual, so what the descent finds is at worst an
-  // upper bound for the search that follows; it prunes nothing, and stops after kContactProbeBounds bounds.
+  // upper bound for the search that follows; it prunes nothing, and stops after kContactProbeBounds bounds
+  // (kContactProbeFanBounds with a fan).
   void probeForContact() {
     struct PairStep {
       int node_b, node_a;
     };
     const auto& nodes_a = mesh_a_.bvh.nodes;
     const auto& nodes_b = b_.bvh.nodes;
-    // Only where B holds triangles about as large as itself (its largest leaf, found down the larger child),
-    // whose spheres reach A wherever they lie and leave the grid's bounds at 0 over most of B: the search
-    // then spreads over B breadth-first. Over smaller triangles the grid's bounds find the crossing
-    // triangles sooner than this descent, and it would only add its cost.
+    // B's largest leaf (found down the larger child) as a share of B's radius.
     int largest = 0;
     while (!nodes_b[largest].isLeaf()) {
       const int first = nodes_b[largest].first;
       largest = nodes_b[first + 1].radius > nodes_b[first].radius ? first + 1 : first;
     }
-    if (!(nodes_b[largest].radius >= kContactProbeLargeLeaf * nodes_b[0].radius)) return;
+    // Whether a mesh is a fan: every node down the smaller child keeps kContactProbeLargeLeaf of the root's
+    // radius. Other meshes leave after the first few levels, near the root, where the search starts too.
+    auto isFan = [](const std::vector<BvhNode>& nodes) {
+      const double least = kContactProbeLargeLeaf * nodes[0].radius;
+      int n = 0;
+      while (!nodes[n].isLeaf()) {
+        const int first = nodes[n].first;
+        n = nodes[first + 1].radius < nodes[first].radius ? first + 1 : first;
+        if (!(nodes[n].radius >= least)) return false;
+      }
+      return true;
+    };
+    // Only where B holds triangles about as large as itself (its largest leaf), whose spheres reach A
+    // wherever they lie and leave the grid's bounds at 0 over most of B: the search then spreads over B
+    // breadth-first. Over smaller triangles the grid's bounds find the crossing triangles sooner than this
+    // descent, and it would only add its cost. Or where either mesh is a fan, every leaf of it as large
+    // (slivers fanned about one vertex: each wedge of the fan reaches from its hub to its rim, so nodes of
+    // the fan do not shrink as they split): node pairs with a fan of A then split A's wedges, which keep
+    // their radius, before the other mesh, and spread over the whole fan before any triangle pair is met.
+    const bool large_b = nodes_b[largest].radius >= kContactProbeLargeLeaf * nodes_b[0].radius;
+    const bool fan_a = isFan(nodes_a);
+    const bool fan_b = large_b && isFan(nodes_b);
+    if (!large_b && !fan_a) return;
     // And only where the two roots' oriented boxes overlap deeply for their size: near contact but apart, or
     // where a small B lies anywhere inside A's box, the descent runs its whole budget for nothing. Their size
     // is at most the thicker root box's thinnest extent: two crossing slabs overlap by about their
     // thickness however wide they are, so that the radius alone kept the descent from every such pose.
+    // With a fan, any overlap of the roots: a fan is flat or nearly so, and a mesh crossing it overlaps its
+    // box by no more than the part of that mesh that reaches through, however deep the crossing looks.
     const double root = nodePairLowerBound(0, place(0, X_AB_.apply(nodes_b[0].center)), kInfinity);
     const double size = std::min(std::max(nodes_b[0].radius, nodes_a[0].radius),
                                  2 * std::max(nodes_a[0].obb_half.minCoeff(), nodes_b[0].obb_half.minCoeff()));
-    if (!(root < -kContactProbeOverlap * size)) return;
+    if (!(root < (fan_a || fan_b ? 0 : -kContactProbeOverlap * size))) return;
+    // Against a fan, the other mesh splits first, down to its leaves: a small box of it that crosses the fan
+    // then meets few of the wedges, where a wedge split first meets the other mesh's whole box wherever that
+    // lies along the wedge. Otherwise the larger node splits, by sphere radius.
+    const bool fan_last = fan_a != fan_b;
+    // With a fan, leaf pairs test only the triangle pairs that may touch (within a hair of the scale, for
+    // the filter's rounding): a small leaf near the hub meets every wedge, and its pairs with their slivers,
+    // all near each other, pass the filter at the best distance so far and would each pay the exact test.
+    // Without one, every pair the filter passes: where the descent finds no contact (the meshes apart), the
+    // pairs it tested leave the search an upper bound that prunes from the start.
+    const double touching = kContactProbeTouching * nodes_a[0].radius;
     PairStep stack[128];
     int top = 0;
     stack[top++] = {0, 0};
-    int budget = kContactProbeBounds;
+    int budget = fan_a || fan_b ? kContactProbeFanBounds : kContactProbeBounds;
     while (top > 0 && best_ > 0) {
       const PairStep step = stack[--top];
       const BvhNode& node_a = nodes_a[step.node_a];
@@ -1113,14 +1152,19 @@ class Search {
         for (int n = node_b.first; n < node_b.first + node_b.count && best_ > 0; ++n) {
           const PreparedTriangle& tb = preparedAtLeaf(n);
           for (int m = node_a.first; m < node_a.first + node_a.count && best_ > 0; ++m) {
-            testPairIfCloseOutOfLine(mesh_a_.bvh.triangle_ids[m], tb);
+            if (fan_a || fan_b) {
+              testPairIfTouching(mesh_a_.bvh.triangle_ids[m], tb, touching);
+            } else {
+              testPairIfCloseOutOfLine(mesh_a_.bvh.triangle_ids[m], tb);
+            }
           }
         }
         continue;
       }
       if (budget <= 0 || top + 2 > 128) continue;
       budget -= 2;
-      const bool a_splits = !node_a.isLeaf() && (node_b.isLeaf() || node_a.radius >= node_b.radius);
+      const bool a_splits =
+          !node_a.isLeaf() && (node_b.isLeaf() || (fan_last ? fan_b : node_a.radius >= node_b.radius));
       double bounds[2];
       PairStep children[2];
       if (a_splits) {
@@ -1384,6 +1428,11 @@ class Search {
   // testPairIfClose for the rare steps below: a further inlined copy tipped GCC into keeping every copy out
   // of line, the hot loops' included.
   CFL_NOINLINE void testPairIfCloseOutOfLine(int a, const PreparedTriangle& tb) { testPairIfClose(a, tb); }
+  // The contact probe's pair test: only a pair that may lie within `touching` (a length near 0) of each
+  // other, by mayBeCloser's bounds.
+  CFL_NOINLINE void testPairIfTouching(int a, const PreparedTriangle& tb, double touching) {
+    if (mayBeCloser(a, tb, std::min(touching, pruneThreshold()))) testPair(a, tb);
+  }
 
   // The rarer steps of expand, out of line: inlined, they made expand too large for GCC to inline into
   // runHierarchical, which then paid a call and its register saves on every step.

@@ -1365,17 +1365,19 @@ TEST(ComputeDistance, SliverBladeAgainstItselfAtEveryBandMatchesBruteForce) {
 // answers everywhere). The spines' bound (detail/triangle_spine.h) prunes most pairs there, and B's pieces
 // over leaves without a list go on as node pairs: at every band, against itself and against a slightly
 // domed fan, the answers must equal brute force.
+TriangleMesh makeSliverFan(int slivers, double dome, double radius = 20) {
+  TriangleMesh mesh;
+  mesh.vertices.push_back(Eigen::Vector3d(0, 0, dome));
+  for (int k = 0; k < slivers; ++k) {
+    const double angle = 2 * M_PI * k / slivers;
+    mesh.vertices.push_back(Eigen::Vector3d(radius * std::cos(angle), radius * std::sin(angle), 0));
+  }
+  for (int k = 0; k < slivers; ++k) mesh.triangles.push_back({0, 1 + k, 1 + (k + 1) % slivers});
+  return mesh;
+}
+
 TEST(ComputeDistance, SliverFanDisksMatchBruteForce) {
-  auto fan = [](int slivers, double dome) {
-    TriangleMesh mesh;
-    mesh.vertices.push_back(Eigen::Vector3d(0, 0, dome));
-    for (int k = 0; k < slivers; ++k) {
-      const double angle = 2 * M_PI * k / slivers;
-      mesh.vertices.push_back(Eigen::Vector3d(20 * std::cos(angle), 20 * std::sin(angle), 0));
-    }
-    for (int k = 0; k < slivers; ++k) mesh.triangles.push_back({0, 1 + k, 1 + (k + 1) % slivers});
-    return mesh;
-  };
+  auto fan = [](int slivers, double dome) { return makeSliverFan(slivers, dome); };
   expectSelfDistancesMatchBruteForce(*makeShape("fan", fan(500, 0), 0), {0, 0.005, 0.02, 0.1, 0.5, 1.0}, 8, 3141,
                                      "flat fan");
   expectSelfDistancesMatchBruteForce(*makeShape("domed fan", fan(400, 0.7), 0), {0.005, 0.02, 0.1, 0.5}, 8, 2718,
@@ -1399,6 +1401,52 @@ TEST(ComputeDistance, SliverFanDisksMatchBruteForce) {
     }
     EXPECT_EQ(failures.count(), 0) << a->name << " against " << b->name;
   }
+}
+
+// A fan of slivers (every Bvh node of it reaches from the hub to the rim) crossed by compact meshes, the fan
+// as A and as B: the search first descends the node pairs whose oriented boxes overlap, the compact mesh
+// split first, testing only the triangle pairs that may touch (Search::probeForContact). The compact mesh's
+// center lies in the fan's plane, at the hub, mid-way or past the rim, or off the plane by a little (its
+// boxes still cross the fan's, its triangles may not) or by more. Every answer must be brute force's: 0 with
+// both points on both returned triangles where they cross, and where they do not, the pairs the descent
+// tested must not stand in for the closest.
+TEST(ComputeDistance, CompactMeshesCrossingASliverFanMatchBruteForce) {
+  std::vector<const Shape*> compact = {&shape("torus"), &shape("knot"), &shape("messy"), &bunny()};
+  test::Rng rng(4242);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  Failures failures;
+  int overlapping = 0, apart = 0;
+  for (const Shape* other : compact) {
+    const auto fan = makeShape("fan", makeSliverFan(700, 0.02 * other->diagonal, 0.8 * other->diagonal), 0);
+    const int poses = other == &bunny() ? 6 : 16;
+    for (int n = 0; n < poses; ++n) {
+      const double angle = M_PI * unit(rng);
+      const double along = (n % 4 == 0 ? 0.05 : n % 4 == 1 ? 0.5 : n % 4 == 2 ? 0.9 : 1.1) * 0.8 * other->diagonal;
+      const double side = unit(rng) < 0 ? -1.0 : 1.0;
+      const double off = side * other->diagonal * (n % 3 == 0 ? 0.0 : n % 3 == 1 ? 0.2 * std::abs(unit(rng)) : 0.25 + 0.2 * std::abs(unit(rng)));
+      // The compact mesh's box center at (along, angle, off) in the fan's frame, turned at random.
+      Eigen::Isometry3d X_FO = Eigen::Isometry3d::Identity();
+      X_FO.linear() = test::randomRotation(rng);
+      X_FO.translation() = Eigen::Vector3d(along * std::cos(angle), along * std::sin(angle), off) -
+                           X_FO.linear() * other->model.bounds.center();
+      const Eigen::Isometry3d X_WF = test::randomPose(rng, 2.0);
+      for (bool fan_is_a : {true, false}) {
+        const Shape& a = fan_is_a ? *fan : *other;
+        const Shape& b = fan_is_a ? *other : *fan;
+        Pose pose;
+        pose.X_WA = fan_is_a ? X_WF : X_WF * X_FO;
+        pose.X_WB = fan_is_a ? X_WF * X_FO : X_WF;
+        pose.kind = fan_is_a ? "fan as A" : "fan as B";
+        const DistanceResult truth = bruteForceDistance(a.model, pose.X_WA, b.model, pose.X_WB);
+        (truth.distance == 0 ? overlapping : apart) += 1;
+        checkResult(computeDistance(a.cfl, pose.X_WA, b.model, pose.X_WB), truth, a, b, pose,
+                    other->name + " crossing a fan", failures);
+      }
+    }
+  }
+  EXPECT_EQ(failures.count(), 0);
+  EXPECT_GE(overlapping, 60);
+  EXPECT_GE(apart, 20);
 }
 
 // B's Bvh leaves that reach past A's grid go on whole as node pairs with A's Bvh (Search::expand), their

@@ -1359,18 +1359,15 @@ class Search {
       return;
     }
     // The larger piece splits, by sphere radius: a node into its children, a leaf of several triangles into
-    // its triangles, each bounded on its own as a child would be. Splitting the other piece further against
-    // such a leaf's box instead would reach its small subtrees through every triangle of the leaf: where the
-    // leaf's triangles face different ways (two faces of a box), its box is as loose as their union, and the
-    // pairs tested against the far triangle multiply. Not a leaf whose box is a needle, against a node at
-    // least as large as the needle is wide: its triangles lie side by side along it (the slivers of a fan), so
-    // its box is as tight as theirs, and split first each of them walked the other's subtree alone. Against a
-    // smaller node, the needle's triangles are apart for the node's size, and splitting it pays again (a
-    // bolt's small nodes against an assembly's long parts).
+    // its triangles, each bounded on its own as a child would be. But a leaf against a node at least as
+    // large as the leaf is wide (its middle half extent) stays whole and the node splits: split first, each
+    // of the leaf's triangles walked the node's subtree alone (a fan's slivers, side by side in a needle
+    // whose radius is half its length, against a bunny's nodes; a pipe's rings; an assembly's long parts).
+    // Against a smaller node or a leaf, the leaf's triangles are apart for the other's size, and splitting
+    // the leaf pays (a bolt's small nodes against an assembly's long parts).
     auto splitsFirst = [](const BvhNode& leaf, const BvhNode& other) {
-      if (other.isLeaf() || !isNeedle(leaf.obb_half)) return true;
       const Eigen::Vector3d& half = leaf.obb_half;
-      return other.radius < half.sum() - half.maxCoeff() - half.minCoeff();
+      return other.isLeaf() || other.radius < half.sum() - half.maxCoeff() - half.minCoeff();
     };
     const bool a_splits = !node_a.isLeaf() || (node_a.count > 1 && splitsFirst(node_a, node_b));
     const bool b_splits = !node_b.isLeaf() || (node_b.count > 1 && splitsFirst(node_b, node_a));

@@ -18,6 +18,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <utility>
 #include <vector>
 
 namespace {
@@ -60,13 +61,21 @@ Triangle randomTriangle(std::mt19937_64& rng, const Vec& center, double size) {
   }
 }
 
+// A size from 1e-3 to 1e3 and, for every third pair n, an offset a thousand sizes from the origin (where
+// the coordinates' rounding is what the bounds' slack must cover); otherwise the origin.
+std::pair<double, Vec> randomScaleAndOffset(std::mt19937_64& rng, int n) {
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  const double scale = std::pow(10.0, 3 * unit(rng));
+  const Vec offset = 1e3 * scale * Vec(unit(rng), unit(rng), unit(rng));
+  return {scale, n % 3 == 0 ? offset : Vec::Zero()};
+}
+
 TEST(TriangleSpine, NeverExceedsTheDistanceBetweenTriangles) {
   std::mt19937_64 rng(20261127);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   int checked = 0, positive = 0;
   for (int n = 0; n < 200000; ++n) {
-    const double scale = std::pow(10.0, 3 * unit(rng));
-    const Vec offset = 1e3 * scale * Vec(unit(rng), unit(rng), unit(rng)) * (n % 3 == 0 ? 1.0 : 0.0);
+    const auto [scale, offset] = randomScaleAndOffset(rng, n);
     const Triangle a = randomTriangle(rng, offset, scale);
     const Triangle b = randomTriangle(rng, offset + 2 * scale * Vec(unit(rng), unit(rng), unit(rng)), scale);
     const double exact = exactDistance(a, b);
@@ -185,14 +194,12 @@ TEST(BoxSpine, NeverExceedsTheDistanceBetweenBoxes) {
   int positive = 0, close = 0;
   const int count = 20000;
   for (int n = 0; n < count; ++n) {
-    const double scale = std::pow(10.0, 3 * unit(rng));
-    const Vec offset = 1e3 * scale * Vec(unit(rng), unit(rng), unit(rng)) * (n % 3 == 0 ? 1.0 : 0.0);
-    const Box a = randomBox(rng, offset, scale);
-    const Box b = randomBox(rng, offset + 3 * scale * Vec(unit(rng), unit(rng), unit(rng)), scale);
-    const double exact = boxDistance(a, b);
-    const double bound = boxSpineBound(a, b);
-    const double rounding = 1e-13 * (offset.norm() + 8 * scale);
-    ASSERT_LE(bound, exact + rounding) << "pair " << n << ": bound " << bound << ", distance " << exact;
+    const auto [scale, offset] = randomScaleAndOffset(rng, n);
+    const Vec apart = 3 * scale * Vec(unit(rng), unit(rng), unit(rng));
+    const Box boxes[2] = {randomBox(rng, offset, scale), randomBox(rng, offset + apart, scale)};
+    const double exact = boxDistance(boxes[0], boxes[1]), bound = boxSpineBound(boxes[0], boxes[1]);
+    // The face triangles' exact distance rounds too, over eight corners' coordinates.
+    ASSERT_LE(bound, exact + 1e-13 * (offset.norm() + 8 * scale)) << "pair " << n << ": " << bound << " > " << exact;
     positive += bound > 0;
     close += bound > 0.99 * exact && exact > 0;
   }

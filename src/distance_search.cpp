@@ -1362,7 +1362,7 @@ class Search {
     // its triangles, each bounded on its own as a child would be. But a leaf against a node at least as
     // large as the leaf is wide (its middle half extent) stays whole and the node splits: split first, each
     // of the leaf's triangles walked the node's subtree alone (a fan's slivers, side by side in a needle
-    // whose radius is half its length, against a bunny's nodes; a pipe's rings; an assembly's long parts).
+    // whose radius is half its length, against a bunny's nodes; a pipe's rings against another pipe).
     // Against a smaller node or a leaf, the leaf's triangles are apart for the other's size, and splitting
     // the leaf pays (a bolt's small nodes against an assembly's long parts).
     auto splitsFirst = [](const BvhNode& leaf, const BvhNode& other) {

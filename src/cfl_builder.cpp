@@ -1654,7 +1654,8 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
       capacityBytes(geometry.mesh.vertices) + capacityBytes(geometry.mesh.triangles) +
       capacityBytes(geometry.corners.in_leaf_order) + capacityBytes(geometry.corners.leaf_position) +
       capacityBytes(geometry.spheres) + capacityBytes(geometry.planes) + capacityBytes(geometry.leaf_spheres) +
-      capacityBytes(geometry.leaf_planes) + capacityBytes(geometry.spines) + capacityBytes(geometry.bvh.nodes) + capacityBytes(geometry.compact_nodes) +
+      capacityBytes(geometry.leaf_planes) + capacityBytes(geometry.spines) + capacityBytes(geometry.bvh.nodes) +
+      capacityBytes(geometry.compact_nodes) + capacityBytes(geometry.node_spine_radii) +
       capacityBytes(geometry.bvh.triangle_ids) + memoryBytes(model.sign);
   stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (progress) progress(1.0);

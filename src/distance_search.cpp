@@ -118,6 +118,12 @@ void validateModelShape(const MeshModel& model, const char* which) {
   if (model.bvh.nodes.empty()) {
     throw Error(std::string(which) + ": MeshModel::bvh has no nodes (build the model with makeMeshModel)");
   }
+  if (model.node_spine_radii.size() != model.bvh.nodes.size()) {
+    std::ostringstream message;
+    message << which << ": MeshModel::node_spine_radii has " << model.node_spine_radii.size() << " entries for "
+            << model.bvh.nodes.size() << " Bvh nodes (build the model with makeMeshModel)";
+    throw Error(message.str());
+  }
 }
 
 // HeapEntry::node_a values that name no node of A.
@@ -905,7 +911,8 @@ class Search {
     bound = std::max({bound, gap_a.maxCoeff(), gap_b.maxCoeff()});
     if (bound >= threshold || !(threshold > 0) || !(isNeedle(half_a) || isNeedle(half_b))) return bound;
     return std::max(bound, boxSpineLowerBound(node_a.obb_axes, node_a.obb_center, half_a, b.obb_axes, b.obb_center,
-                                              half_b, kernels_.segment_segment));
+                                              half_b, kernels_.segment_segment, mesh_a_.node_spine_radii[std::size_t(a)],
+                                              b_.node_spine_radii[std::size_t(b.node - b_.bvh.nodes.data())]));
   }
 
   // Lower bound between a triangle and a node's sphere and oriented box, all in A's frame: the larger of the

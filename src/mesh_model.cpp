@@ -9,6 +9,9 @@
 
 #include <Eigen/Geometry>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 namespace cfl {
 namespace {
 
@@ -57,6 +60,37 @@ Eigen::Vector4d boundingSphere(const std::array<Eigen::Vector3d, 3>& c) {
 // buildBvh takes its surface-area split instead, among triangles of very uneven sizes, a leaf may hold
 // fewer: a huge triangle gets a leaf of its own near the root.)
 constexpr int kBvhLeafTriangles = 6;
+
+// MeshModel::node_spine_radii. A vertex's offset from the spine line is measured from the box's center, the
+// rounding of which, and of the projection, the upward margin covers many times over; a float rounded
+// upward keeps it a bound. Each vertex is read once per level of the tree above it: O(n log n).
+std::vector<float> nodeSpineRadii(const TriangleMesh& mesh, const Bvh& bvh) {
+  std::vector<float> radii(bvh.nodes.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, bvh.nodes.size(), 256),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t n = range.begin(); n < range.end(); ++n) {
+                        const BvhNode& node = bvh.nodes[n];
+                        int longest;
+                        node.obb_half.maxCoeff(&longest);
+                        const Eigen::Vector3d axis = node.obb_axes.col(longest);
+                        double squared = 0;
+                        for (int k = node.subtree_first; k < node.subtree_first + node.subtree_count; ++k) {
+                          for (int index : mesh.triangles[std::size_t(bvh.triangle_ids[std::size_t(k)])]) {
+                            const Eigen::Vector3d offset = mesh.vertices[std::size_t(index)] - node.obb_center;
+                            squared = std::max(squared, (offset - offset.dot(axis) * axis).squaredNorm());
+                          }
+                        }
+                        const double margin = 1e-12 * (node.obb_center.cwiseAbs().sum() + node.obb_half.sum());
+                        const double radius = std::sqrt(squared) * (1 + 1e-12) + margin;
+                        float rounded = static_cast<float>(radius);
+                        if (double(rounded) < radius) {
+                          rounded = std::nextafter(rounded, std::numeric_limits<float>::infinity());
+                        }
+                        radii[n] = rounded;
+                      }
+                    });
+  return radii;
+}
 
 }  // namespace
 
@@ -119,6 +153,7 @@ MeshModel makeMeshModel(TriangleMesh mesh) {
     compact.first = node.first;
     compact.count = node.count;
   }
+  model.node_spine_radii = nodeSpineRadii(model.mesh, model.bvh);
   model.bounds = boundingBox(model.mesh);
   return model;
 }

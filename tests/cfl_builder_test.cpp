@@ -580,7 +580,7 @@ TEST(CflBuilder, StorageIsWellFormedAndStatisticsMatchIt) {
           bytes(geometry.mesh.vertices) + bytes(geometry.mesh.triangles) + bytes(geometry.corners.in_leaf_order) +
           bytes(geometry.corners.leaf_position) + bytes(geometry.spheres) + bytes(geometry.planes) +
           bytes(geometry.leaf_spheres) + bytes(geometry.leaf_planes) + bytes(geometry.spines) + bytes(geometry.bvh.nodes) +
-          bytes(geometry.compact_nodes) +
+          bytes(geometry.compact_nodes) + bytes(geometry.node_spine_radii) +
           bytes(geometry.bvh.triangle_ids) + bytes(model.sign.welded_vertex) + bytes(model.sign.neighbors) +
           bytes(model.sign.vertex_normals);
       EXPECT_EQ(stats.memory_bytes, arrays);

@@ -1344,6 +1344,17 @@ TEST(ComputeDistance, FarApartBladesMatchBruteForce) {
                                      1618, "far blades");
 }
 
+// Thin tubes, a rod bent into a knot and into a ring, against themselves: their Bvh nodes are pieces of the
+// tube, needles that node pairs are bounded on as segments swept by disks (MeshModel::node_spine_radii), and
+// far apart many of those pairs lie within a hair of the closest, so a radius or a reach across the spine
+// taken too small would prune it.
+TEST(ComputeDistance, ThinTubesMatchBruteForce) {
+  expectSelfDistancesMatchBruteForce(*makeShape("thin knot", test::makeTorusKnot(2, 3, 1.0, 0.02, 120, 4), 0),
+                                     {0.005, 0.02, 0.1, 0.3, 0.5, 1.0}, 8, 4711, "thin knot");
+  expectSelfDistancesMatchBruteForce(*makeShape("thin ring", test::makeTorus(1.0, 0.01, 160, 5), 0),
+                                     {0.005, 0.02, 0.1, 0.3, 0.5, 1.0}, 8, 1147, "thin ring");
+}
+
 // The suite's worst case in small: a long flat blade of slivers (a plate 13 times longer than wide,
 // triangles 13 times longer than wide, thinner than they are wide), against itself at every band. Far
 // apart, its nearly tied node pairs keep the search's heap about a thousand entries deep (the 4-ary heap

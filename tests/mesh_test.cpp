@@ -225,6 +225,35 @@ TEST(MeshModel, CompactNodesHoldTheBvhBoxesAndLinks) {
   }
 }
 
+// Node pairs are bounded on these radii as segments swept by disks: every vertex below a node must lie within
+// its radius of the line along its box's longest axis, measured here in long double, and the radius must be
+// that largest distance, not a loose one (a bound taking 1.4 times the radius would still pass the first).
+TEST(MeshModel, NodeSpineRadiiHoldEveryVertexBelowTheNodeTightly) {
+  for (const TriangleMesh& mesh : {test::makeMessyMesh(), test::makeTorusKnot(), test::makeTriangleSoup(300, 5),
+                                   test::makeTorus(1.0, 0.05, 400, 6)}) {
+    const MeshModel model = makeMeshModel(mesh);
+    ASSERT_EQ(model.node_spine_radii.size(), model.bvh.nodes.size());
+    for (std::size_t n = 0; n < model.bvh.nodes.size(); ++n) {
+      const BvhNode& node = model.bvh.nodes[n];
+      int longest;
+      node.obb_half.maxCoeff(&longest);
+      using Vec = Eigen::Matrix<long double, 3, 1>;
+      const Vec axis = node.obb_axes.col(longest).cast<long double>();
+      const Vec center = node.obb_center.cast<long double>();
+      long double farthest = 0;
+      for (int k = node.subtree_first; k < node.subtree_first + node.subtree_count; ++k) {
+        for (int index : mesh.triangles[std::size_t(model.bvh.triangle_ids[std::size_t(k)])]) {
+          const Vec offset = mesh.vertices[std::size_t(index)].cast<long double>() - center;
+          farthest = std::max(farthest, (offset - offset.dot(axis) * axis).norm());
+        }
+      }
+      const long double radius = model.node_spine_radii[n];
+      EXPECT_GE(radius, farthest) << "node " << n;
+      EXPECT_LE(radius, farthest * (1 + 1e-6L) + 1e-9L * (center.cwiseAbs().sum() + 1)) << "node " << n;
+    }
+  }
+}
+
 // The query prunes pairs on these spheres and on the disk each cuts from its triangle's plane: every point of
 // a triangle must be inside its sphere, and the center must lie in the plane. The sphere must also be the
 // smallest: no center among random points of the plane near it (an independent search) needs less radius.
@@ -385,6 +414,7 @@ TEST(ModelShapeValidation, DistanceQueryRejectsModelsWhoseArraysDisagree) {
       {[](MeshModel& m) { m.spines.pop_back(); }, "spines"},
       {[](MeshModel& m) { m.bvh.triangle_ids.pop_back(); }, "bvh.triangle_ids"},
       {[](MeshModel& m) { m.bvh.nodes.clear(); }, "bvh has no nodes"},
+      {[](MeshModel& m) { m.node_spine_radii.pop_back(); }, "node_spine_radii"},
   };
   for (const auto& [damage, field] : damages) {
     MeshModel damaged_b = b;

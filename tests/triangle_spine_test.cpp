@@ -7,6 +7,7 @@
 
 #include "../src/detail/triangle_spine.h"
 
+#include "cfl/mesh_model.h"
 #include "cfl/triangle_distance.h"
 
 #include <gtest/gtest.h>
@@ -224,6 +225,78 @@ TEST(BoxSpine, FacingNeedlesAreBoundedNearlyExactly) {
     ASSERT_NEAR(exact, h - 2 * thickness, 1e-12);
     EXPECT_GE(boxSpineBound(a, b), exact - 1e-9) << "pair " << n;
   }
+}
+
+// A piece of a tube (or a rod's skin) along z: `sides` around (3: a triangular prism), `rings` along, its
+// vertices pushed off the circle by up to `roughness` of the radius, then turned and moved at random.
+cfl::TriangleMesh randomTube(std::mt19937_64& rng, double radius, double length, int sides, int rings,
+                             double roughness) {
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  const Eigen::Quaterniond rotation =
+      Eigen::Quaterniond(Eigen::Vector4d(unit(rng), unit(rng), unit(rng), unit(rng))).normalized();
+  const Vec shift = 3 * length * Vec(unit(rng), unit(rng), unit(rng));
+  cfl::TriangleMesh mesh;
+  for (int ring = 0; ring <= rings; ++ring) {
+    for (int side = 0; side < sides; ++side) {
+      const double angle = 2 * 3.14159265358979 * side / sides;
+      const double r = radius * (1 + roughness * unit(rng));
+      const Vec p(r * std::cos(angle), r * std::sin(angle), length * ring / rings);
+      mesh.vertices.push_back(rotation * p + shift);
+    }
+  }
+  for (int ring = 0; ring < rings; ++ring) {
+    for (int side = 0; side < sides; ++side) {
+      const int a = ring * sides + side, b = ring * sides + (side + 1) % sides;
+      mesh.triangles.push_back({a, b, b + sides});
+      mesh.triangles.push_back({a, b + sides, a + sides});
+    }
+  }
+  return mesh;
+}
+
+// The bound of two Bvh roots with their spine radii (MeshModel::node_spine_radii), against the least distance
+// between the two meshes' triangles: tubes of every width for their length (rods to rings), coarse or fine
+// around, rough or round, at random distances and angles. Round tubes far apart for their width are bounded
+// nearly as the cylinders they are, which the box alone (square across) is not; that is what the radii are
+// for, and the test checks that they are used.
+TEST(BoxSpine, SpineRadiiNeverExceedTheDistanceBetweenTubes) {
+  std::mt19937_64 rng(20261127);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int positive = 0, tighter = 0, close = 0;
+  const int count = 400;
+  for (int n = 0; n < count; ++n) {
+    cfl::MeshModel models[2];
+    for (cfl::MeshModel& model : models) {
+      const double length = 0.5 + 4 * unit(rng);
+      const double radius = length * std::pow(10.0, -2 * unit(rng));
+      const int sides = 3 + int(10 * unit(rng));
+      model = cfl::makeMeshModel(randomTube(rng, radius, length, sides, 1 + int(5 * unit(rng)), 0.3 * unit(rng)));
+    }
+    const cfl::BvhNode& a = models[0].bvh.nodes[0];
+    const cfl::BvhNode& b = models[1].bvh.nodes[0];
+    const double radius_a = models[0].node_spine_radii[0], radius_b = models[1].node_spine_radii[0];
+    const double bound = cfl::detail::boxSpineLowerBound(a.obb_axes, a.obb_center, a.obb_half, b.obb_axes, b.obb_center,
+                                                         b.obb_half, cfl::segmentSegmentSquaredDistance, radius_a,
+                                                         radius_b);
+    const double box_only =
+        cfl::detail::boxSpineLowerBound(a.obb_axes, a.obb_center, a.obb_half, b.obb_axes, b.obb_center, b.obb_half);
+    double exact = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < models[0].corners.size(); ++i) {
+      for (std::size_t j = 0; j < models[1].corners.size(); ++j) {
+        exact = std::min(exact, std::sqrt(cfl::triangleTriangleSquaredDistance(models[0].corners[i].data(),
+                                                                                 models[1].corners[j].data())));
+      }
+    }
+    const double scale = a.obb_center.norm() + b.obb_center.norm() + a.obb_half.sum() + b.obb_half.sum();
+    ASSERT_LE(bound, exact + 1e-12 * scale) << "pair " << n << ": " << bound << " > " << exact;
+    EXPECT_GE(bound, box_only) << "pair " << n;
+    positive += bound > 0;
+    tighter += bound > box_only + 1e-6 * exact;
+    close += bound > 0.99 * exact && exact > 0;
+  }
+  EXPECT_GT(positive, count / 2);
+  EXPECT_GT(tighter, count / 4);
+  EXPECT_GT(close, count / 20);
 }
 
 }  // namespace

@@ -150,9 +150,12 @@ void printStatistics(const CflModel& model, std::ostream& out) {
                 perTriangle(bytesOf(g.corners.in_leaf_order)), perTriangle(bytesOf(g.corners.leaf_position)),
                 perTriangle(bytesOf(g.spheres)), perTriangle(bytesOf(g.planes)),
                 perTriangle(bytesOf(g.leaf_spheres) + bytesOf(g.leaf_planes)), perTriangle(bytesOf(g.spines)));
-  out << format("  Bvh:               %.1f B/triangle (%zu nodes of %zu B, triangle ids %.1f)\n",
-                perTriangle(bytesOf(g.bvh.nodes) + bytesOf(g.bvh.triangle_ids)), g.bvh.nodes.size(), sizeof(BvhNode),
-                perTriangle(bytesOf(g.bvh.triangle_ids)));
+  out << format("  Bvh:               %.1f B/triangle (%zu nodes of %zu B, triangle ids %.1f, compact nodes %.1f, "
+                "spine radii %.1f)\n",
+                perTriangle(bytesOf(g.bvh.nodes) + bytesOf(g.bvh.triangle_ids) + bytesOf(g.compact_nodes) +
+                            bytesOf(g.node_spine_radii)),
+                g.bvh.nodes.size(), sizeof(BvhNode), perTriangle(bytesOf(g.bvh.triangle_ids)),
+                perTriangle(bytesOf(g.compact_nodes)), perTriangle(bytesOf(g.node_spine_radii)));
   out << format("  region nodes:      %.1f B/triangle (%zu nodes)\n", perTriangle(bytesOf(r.nodes)), r.nodes.size());
   out << format("  leaf arrays:       %.1f B/triangle (list ids %.1f, lower bounds %.1f, corner distances %.1f)\n",
                 perTriangle(bytesOf(r.leaf_list) + bytesOf(r.leaf_lower_bound) + bytesOf(r.leaf_corner_distance)),

@@ -64,6 +64,12 @@ struct MeshModel {
   std::vector<std::uint8_t> spines;
   /// bvh.nodes again as CompactBvhNode, same indices and the same float boxes.
   std::vector<CompactBvhNode> compact_nodes;
+  /// node_spine_radii[n]: the largest distance (rounded up, length unit of M) from a vertex below Bvh node n
+  /// to the line through its oriented box's center along the box's longest axis. With the box, the node is a
+  /// segment swept by a disk of that radius: a piece of a pipe or a rod, whose box corners reach 1.4 times
+  /// as far across, is bounded as the cylinder it nearly is where two such nodes are far apart for their
+  /// width. 4 bytes per node.
+  std::vector<float> node_spine_radii;
   Aabb bounds;  ///< Bounds of the vertices that triangles use.
 };
 

@@ -85,10 +85,18 @@ inline double spineLowerBound(const Eigen::Vector3d a[3], const TriangleSpine& s
 // both boxes' terms. Where the boxes are needles or facing slabs (the Bvh nodes of a disk fanned into
 // slivers, every one of them reaching the disk's center) it is nearly the distance; the separating axes
 // of the faces and the line between the centers are loose there.
+// `radius_a` / `radius_b`: how far the points the box holds may lie from its spine's line (infinity: as far
+// as the box's corners). A point's offset from that line is perpendicular to the spine, so its reach along
+// u is at most the radius times the part of u across the spine; a box's term is the smaller of the two
+// reaches. Round pieces (of a pipe, a rod) then count as the cylinders they nearly are, where the corners of
+// their square boxes reach up to 1.4 times as far. The 1e-15 under the root covers the rounding of
+// 1 - (u . axis)^2 where u runs nearly along the spine.
 inline double boxSpineLowerBound(const Eigen::Matrix3d& axes_a, const Eigen::Vector3d& center_a,
                                  const Eigen::Vector3d& half_a, const Eigen::Matrix3d& axes_b,
                                  const Eigen::Vector3d& center_b, const Eigen::Vector3d& half_b,
-                                 SegmentSegmentDistance segment_distance = cfl::segmentSegmentSquaredDistance) {
+                                 SegmentSegmentDistance segment_distance = cfl::segmentSegmentSquaredDistance,
+                                 double radius_a = std::numeric_limits<double>::infinity(),
+                                 double radius_b = std::numeric_limits<double>::infinity()) {
   int long_a, long_b;
   half_a.maxCoeff(&long_a);
   half_b.maxCoeff(&long_b);
@@ -105,8 +113,12 @@ inline double boxSpineLowerBound(const Eigen::Matrix3d& axes_a, const Eigen::Vec
   across_b[long_b] = 0;
   const double slack = 1e-12 * (p.cwiseAbs().sum() + q.cwiseAbs().sum() + reach_a.cwiseAbs().sum() +
                                 reach_b.cwiseAbs().sum() + half_a.sum() + half_b.sum());
-  return d - across_a.dot((axes_a.transpose() * u).cwiseAbs()) - across_b.dot((axes_b.transpose() * u).cwiseAbs()) -
-         slack;
+  const Eigen::Vector3d u_a = axes_a.transpose() * u, u_b = axes_b.transpose() * u;
+  auto reach = [](const Eigen::Vector3d& across, const Eigen::Vector3d& u_box, int spine, double radius) {
+    const double off_spine = std::sqrt(std::max(0.0, 1 - u_box[spine] * u_box[spine]) + 1e-15) * (1 + 1e-12);
+    return std::min(across.dot(u_box.cwiseAbs()), radius * off_spine);
+  };
+  return d - reach(across_a, u_a, long_a, radius_a) - reach(across_b, u_b, long_b, radius_b) - slack;
 }
 
 }  // namespace cfl::detail

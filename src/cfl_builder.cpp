@@ -626,8 +626,21 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
 
   // Whether the cell splits whatever the rest of its list (see the rule after the walk), and the state of that
   // rule: the certain entries so far and their shortfalls.
+  // The rule's distance test compares the size with the listed lower bound, the least full bound of the
+  // entries, which may lie far below the center's distance (a cell beside the mesh, whose center is just
+  // outside the split range). When the center's nearest triangle is certain to be listed, its full bound caps
+  // the listed one: if the test holds on it, it holds whatever the rest of the list.
+  auto nearestListedNear = [&] {
+    const int k = geometry.corners.leaf_position[center_triangle];
+    if (context.culling && edgeRegionMask(k) != 0) return false;
+    double d_min, d_center;
+    if (exclusionTests(k, d_min, d_center) || !(d_center < certain)) return false;
+    const auto& c = geometry.corners.in_leaf_order[k];
+    const double full = detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], d_min);
+    return size > kFarCellRatio * full * (1 + 1e-6);
+  };
   const bool split_early = split_edges && context.early_split && !count_early &&
-                           size > kFarCellRatio * center_distance * (1 + 1e-6);
+                           (size > kFarCellRatio * center_distance * (1 + 1e-6) || nearestListedNear());
   const double largest_mean = size / (kSmallestCell * (1 + 1e-6));
   double shortfall = 0;
   std::uint32_t certain_entries = 0;

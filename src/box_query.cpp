@@ -396,6 +396,8 @@ void searchBvh(const MeshModel& mesh, const BoxFrame& box, Best& best) {
           }
           for (int k = 0; k < n; ++k) {
             const int j = order[k];
+            // The rest reach no nearer: the best only shrinks.
+            if (reach[j] > 0 && reach[j] * reach[j] >= best.squared) break;
             const int i = first + j;
             considerTriangle(box, mesh.corners.in_leaf_order[std::size_t(i)], spheres[j], reach[j],
                              mesh.leaf_planes[std::size_t(i)], mesh.bvh.triangle_ids[std::size_t(i)], best);

@@ -231,6 +231,11 @@ struct BoxFrame {
   Eigen::Vector3d half;
   Eigen::Vector3d corners[8];  // frame B
   double rotation[3][3], shift[3];  // X_BM's rotation (row-major) and translation, for sphereReach
+#if defined(__SSE2__)
+  // The same numbers and +-half, each in both lanes, for the two-lane bounds: set once per query, not
+  // broadcast again at every node.
+  __m128d rotation2[3][3], shift2[3], half2[3], minus_half2[3];
+#endif
 };
 
 // The gap from the box to the sphere of center c (frame M) and radius r: the distance from the center to the
@@ -247,26 +252,50 @@ inline double sphereReach(const BoxFrame& box, const double* c, double r) {
   return std::sqrt(squared) - r;
 }
 
+#if defined(__SSE2__)
+// The squared distances from the box to points c0 (low lane) and c1 (high lane), frame M: sphereReach's
+// operations, in its order, two lanes at once.
+inline __m128d boxSquaredDistance2(const BoxFrame& box, const double* c0, const double* c1) {
+  const __m128d x = _mm_set_pd(c1[0], c0[0]), y = _mm_set_pd(c1[1], c0[1]), z = _mm_set_pd(c1[2], c0[2]);
+  __m128d squared = _mm_setzero_pd();
+  for (int k = 0; k < 3; ++k) {
+    const __m128d* row = box.rotation2[k];
+    const __m128d p = _mm_add_pd(
+        _mm_add_pd(_mm_add_pd(_mm_mul_pd(row[0], x), _mm_mul_pd(row[1], y)), _mm_mul_pd(row[2], z)), box.shift2[k]);
+    // std::max(p, -h) is p < -h ? -h : p, which _mm_max_pd(-h, p) spells (and std::min likewise).
+    const __m128d clamped = _mm_min_pd(box.half2[k], _mm_max_pd(box.minus_half2[k], p));
+    const __m128d d = _mm_sub_pd(p, clamped);
+    squared = _mm_add_pd(squared, _mm_mul_pd(d, d));
+  }
+  return squared;
+}
+#endif
+
+// The squared distances from the box to points c0 and c1 (frame M): out[0] and out[1].
+inline void boxSquaredDistance2(const BoxFrame& box, const double* c0, const double* c1, double out[2]) {
+#if defined(__SSE2__)
+  _mm_storeu_pd(out, boxSquaredDistance2(box, c0, c1));
+#else
+  for (int i = 0; i < 2; ++i) {
+    const double* c = i == 0 ? c0 : c1;
+    double squared = 0;
+    for (int k = 0; k < 3; ++k) {
+      const double* row = box.rotation[k];
+      const double p = row[0] * c[0] + row[1] * c[1] + row[2] * c[2] + box.shift[k];
+      const double d = p - std::min(std::max(p, -box.half[k]), box.half[k]);
+      squared += d * d;
+    }
+    out[i] = squared;
+  }
+#endif
+}
+
 // sphereReach for two spheres: out[0] for (c0, r0), out[1] for (c1, r1). Two lanes share one square root,
 // whose latency the walk otherwise waits for at every node.
 inline void sphereReach2(const BoxFrame& box, const double* c0, double r0, const double* c1, double r1,
                          double out[2]) {
 #if defined(__SSE2__)
-  const __m128d x = _mm_set_pd(c1[0], c0[0]), y = _mm_set_pd(c1[1], c0[1]), z = _mm_set_pd(c1[2], c0[2]);
-  __m128d squared = _mm_setzero_pd();
-  for (int k = 0; k < 3; ++k) {
-    const double* row = box.rotation[k];
-    const __m128d p =
-        _mm_add_pd(_mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_set1_pd(row[0]), x), _mm_mul_pd(_mm_set1_pd(row[1]), y)),
-                              _mm_mul_pd(_mm_set1_pd(row[2]), z)),
-                   _mm_set1_pd(box.shift[k]));
-    // std::max(p, -h) is p < -h ? -h : p, which _mm_max_pd(-h, p) spells (and std::min likewise).
-    const __m128d h = _mm_set1_pd(box.half[k]);
-    const __m128d clamped = _mm_min_pd(h, _mm_max_pd(_mm_sub_pd(_mm_setzero_pd(), h), p));
-    const __m128d d = _mm_sub_pd(p, clamped);
-    squared = _mm_add_pd(squared, _mm_mul_pd(d, d));
-  }
-  _mm_storeu_pd(out, _mm_sub_pd(_mm_sqrt_pd(squared), _mm_set_pd(r1, r0)));
+  _mm_storeu_pd(out, _mm_sub_pd(_mm_sqrt_pd(boxSquaredDistance2(box, c0, c1)), _mm_set_pd(r1, r0)));
 #else
   out[0] = sphereReach(box, c0, r0);
   out[1] = sphereReach(box, c1, r1);
@@ -293,6 +322,19 @@ inline void considerTriangle(const BoxFrame& box, const std::array<Eigen::Vector
   Eigen::Vector4d sphere_S;
   sphere_S.head<3>() = box.X_BM * sphere.head<3>();
   sphere_S.w() = sphere.w();
+  // One more separating axis: from the box's point nearest the triangle's sphere center to that center. Where
+  // a triangle is tilted against the box's axes and its plane passes near the box, neither bound above is
+  // tight, while this one nearly is for any triangle the box sees from outside its sphere. Projections of
+  // box-frame coordinates, less a hair of their scale for rounding.
+  const Eigen::Vector3d& center = sphere_S.head<3>();
+  const Eigen::Vector3d axis = center - center.cwiseMax(-box.half).cwiseMin(box.half);
+  const double axis_squared = axis.squaredNorm();
+  if (axis_squared > 0) {
+    const double scale = std::max(hi.cwiseAbs().maxCoeff(), lo.cwiseAbs().maxCoeff()) + box.half.maxCoeff();
+    const double axis_gap = std::min({axis.dot(t[0]), axis.dot(t[1]), axis.dot(t[2])}) -
+                            axis.cwiseAbs().dot(box.half) - 1e-12 * axis.cwiseAbs().sum() * scale;
+    if (axis_gap > 0 && axis_gap * axis_gap * kGapShrink >= best.squared * axis_squared) return;
+  }
   testTriangleApart(*box.kernels, t, plane_S, sphere_S, box.half, box.corners, box_gap > 0 || plane_gap > 0, id, best);
 }
 
@@ -302,63 +344,82 @@ void searchBvh(const MeshModel& mesh, const BoxFrame& box, Best& best) {
   // A node's sphere against the box: its center's distance to the box, minus its radius. (Adding the nodes'
   // axis-aligned boxes against the box's bounds changed nothing measurable in cfl_shape_bench; separating
   // the nodes' oriented boxes from the box along both sets of axes pruned too little for its cost.)
+  //
+  // A node is out of reach when its center is at least its radius plus the best distance from the box:
+  // compared in squares, so that no square root of a node's distance stands between it and the choice of
+  // the next node (the best distance's root is taken only when a leaf improves it). The walk descends into
+  // the nearer child directly and keeps the farther one pending.
   struct Pending {
     int node;
-    double bound;
+    double squared, radius;  // the squared distance from the node's center to the box, its radius
   };
-  Pending stack[128];
+  Pending stack[Bvh::kMaxDepth + 1];
   int top = 0;
+  double best_distance = std::sqrt(best.squared);
+  auto outOfReach = [&](double squared, double radius) {
+    const double reach = radius + best_distance;
+    return squared >= reach * reach;
+  };
   if (!nodes.empty()) {
-    const double root = sphereReach(box, nodes[0].center.data(), nodes[0].radius);
-    if (!(root > 0 && root * root >= best.squared)) stack[top++] = {0, root};
+    double squared[2];
+    boxSquaredDistance2(box, nodes[0].center.data(), nodes[0].center.data(), squared);
+    if (!outOfReach(squared[0], nodes[0].radius)) stack[top++] = {0, squared[0], nodes[0].radius};
   }
   while (top > 0) {
     const Pending pending = stack[--top];
-    if (pending.bound > 0 && pending.bound * pending.bound >= best.squared) continue;
-    const BvhNode& node = nodes[pending.node];
-    if (node.isLeaf()) {
-      // A leaf holds several triangles (a few at a time, kChunk at most): each is first bounded by its own
-      // sphere against the box, two at once, and then tested nearest sphere first, so that the best is
-      // tight before the farther triangles, whose bounds then dismiss them before their exact tests.
-      constexpr int kChunk = 8;
-      const int end = node.first + node.count;
-      for (int first = node.first; first < end; first += kChunk) {
-        const int n = std::min(kChunk, end - first);
-        const Eigen::Vector4d* spheres = &mesh.leaf_spheres[std::size_t(first)];
-        double reach[kChunk];
-        int order[kChunk];
-        for (int j = 0; j < n; j += 2) {
-          if (j + 1 < n)
-            sphereReach2(box, spheres[j].data(), spheres[j].w(), spheres[j + 1].data(), spheres[j + 1].w(),
-                         reach + j);
-          else
-            reach[j] = sphereReach(box, spheres[j].data(), spheres[j].w());
+    if (outOfReach(pending.squared, pending.radius)) continue;
+    for (int index = pending.node;;) {
+      const BvhNode& node = nodes[index];
+      if (node.isLeaf()) {
+        // A leaf holds several triangles (a few at a time, kChunk at most): each is first bounded by its own
+        // sphere against the box, two at once, and then tested nearest sphere first, so that the best is
+        // tight before the farther triangles, whose bounds then dismiss them before their exact tests.
+        constexpr int kChunk = 8;
+        const int end = node.first + node.count;
+        for (int first = node.first; first < end; first += kChunk) {
+          const int n = std::min(kChunk, end - first);
+          const Eigen::Vector4d* spheres = &mesh.leaf_spheres[std::size_t(first)];
+          double reach[kChunk];
+          int order[kChunk];
+          for (int j = 0; j < n; j += 2) {
+            if (j + 1 < n)
+              sphereReach2(box, spheres[j].data(), spheres[j].w(), spheres[j + 1].data(), spheres[j + 1].w(),
+                           reach + j);
+            else
+              reach[j] = sphereReach(box, spheres[j].data(), spheres[j].w());
+          }
+          // Insertion sort by reach; equal reaches keep the leaf's order.
+          for (int j = 0; j < n; ++j) {
+            int k = j;
+            for (; k > 0 && reach[order[k - 1]] > reach[j]; --k) order[k] = order[k - 1];
+            order[k] = j;
+          }
+          for (int k = 0; k < n; ++k) {
+            const int j = order[k];
+            // The rest reach no nearer: the best only shrinks.
+            if (reach[j] > 0 && reach[j] * reach[j] >= best.squared) break;
+            const int i = first + j;
+            considerTriangle(box, mesh.corners.in_leaf_order[std::size_t(i)], spheres[j], reach[j],
+                             mesh.leaf_planes[std::size_t(i)], mesh.bvh.triangle_ids[std::size_t(i)], best);
+          }
         }
-        // Insertion sort by reach; equal reaches keep the leaf's order.
-        for (int j = 0; j < n; ++j) {
-          int k = j;
-          for (; k > 0 && reach[order[k - 1]] > reach[j]; --k) order[k] = order[k - 1];
-          order[k] = j;
-        }
-        for (int k = 0; k < n; ++k) {
-          const int j = order[k];
-          const int i = first + j;
-          considerTriangle(box, mesh.corners.in_leaf_order[std::size_t(i)], spheres[j], reach[j],
-                           mesh.leaf_planes[std::size_t(i)], mesh.bvh.triangle_ids[std::size_t(i)], best);
-        }
+        if (best.squared == 0) return;
+        best_distance = std::sqrt(best.squared);
+        break;
       }
-      if (best.squared == 0) break;
-      continue;
+      // The children nearer first, by their spheres' reach (a square root each, but only the branch taken
+      // waits for it, not the bounds).
+      const int left = node.first, right = node.first + 1;
+      double squared[2];
+      boxSquaredDistance2(box, nodes[left].center.data(), nodes[right].center.data(), squared);
+      const double left_radius = nodes[left].radius, right_radius = nodes[right].radius;
+      const bool left_first = std::sqrt(squared[0]) - left_radius <= std::sqrt(squared[1]) - right_radius;
+      const Pending near = left_first ? Pending{left, squared[0], left_radius} : Pending{right, squared[1], right_radius};
+      const Pending far = left_first ? Pending{right, squared[1], right_radius} : Pending{left, squared[0], left_radius};
+      if (!outOfReach(far.squared, far.radius)) stack[top++] = far;
+      if (outOfReach(near.squared, near.radius)) break;
+      index = near.node;
     }
-    const BvhNode &left_node = nodes[node.first], &right_node = nodes[node.first + 1];
-    double reach[2];
-    sphereReach2(box, left_node.center.data(), left_node.radius, right_node.center.data(), right_node.radius, reach);
-    const double left = reach[0], right = reach[1];
-    const bool left_first = left <= right;
-    const Pending near{left_first ? node.first : node.first + 1, left_first ? left : right};
-    const Pending far{left_first ? node.first + 1 : node.first, left_first ? right : left};
-    if (!(far.bound > 0 && far.bound * far.bound >= best.squared)) stack[top++] = far;
-    if (!(near.bound > 0 && near.bound * near.bound >= best.squared)) stack[top++] = near;
   }
 }
 
@@ -382,6 +443,14 @@ BoxDistance computeBoxDistance(const CflModel& model, const Eigen::Isometry3d& X
     for (int j = 0; j < 3; ++j) box.rotation[i][j] = box.X_BM.linear()(i, j);
     box.shift[i] = box.X_BM.translation()[i];
   }
+#if defined(__SSE2__)
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) box.rotation2[i][j] = _mm_set1_pd(box.rotation[i][j]);
+    box.shift2[i] = _mm_set1_pd(box.shift[i]);
+    box.half2[i] = _mm_set1_pd(half[i]);
+    box.minus_half2[i] = _mm_set1_pd(-half[i]);
+  }
+#endif
   for (int c = 0; c < 8; ++c)
     box.corners[c] =
         Eigen::Vector3d(c & 1 ? half.x() : -half.x(), c & 2 ? half.y() : -half.y(), c & 4 ? half.z() : -half.z());

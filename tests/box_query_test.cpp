@@ -95,6 +95,54 @@ TEST(BoxQuery, EqualsBruteForceOnParallelFacesDegenerateTrianglesAndFarBoxes) {
   }
 }
 
+// Boxes of every aspect (cubes, flat plates, needles, slabs) turned anyhow near the surface, 0.2% to 3% of the
+// diagonal away as the shape benches place them, where the walk's node spheres reach past the best distance
+// most often; and an upper bound just above and just below the answer, which the walk's bounds start from.
+TEST(BoxQuery, FlatAndNeedleBoxesNearTheSurfaceEqualBruteForceUnderUpperBounds) {
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> uniform(0, 1);
+  std::normal_distribution<double> gauss;
+  const std::vector<std::pair<std::string, Eigen::Vector3d>> aspects = {{"cube", {1, 1, 1}},
+                                                                        {"plate", {1, 0.7, 1e-3}},
+                                                                        {"needle", {1, 2e-3, 1e-3}},
+                                                                        {"slab", {1, 0.3, 0.02}}};
+  for (const auto& [name, mesh] : std::vector<std::pair<std::string, TriangleMesh>>{
+           {"knot", test::makeTorusKnot(2, 3, 1.0, 0.3, 96, 8)},
+           {"bunny", test::loadBunny()},
+           {"sheet", test::makeWavySheet(1.5, 0.4, 24)},
+           {"soup", test::makeTriangleSoup(400, 7)}}) {
+    const CflModel model = buildCflModel(mesh);
+    const double size = model.geometry.bounds.diagonal();
+    for (const auto& [aspect_name, aspect] : aspects) {
+      int apart = 0;
+      for (int i = 0; i < 25; ++i) {
+        const Eigen::Isometry3d X_WM = test::randomPose(rng, 1.0);
+        Eigen::Isometry3d X_WB = test::randomPose(rng, 1.0);
+        const Eigen::Vector3d half = (0.005 + 0.02 * uniform(rng)) * size * aspect;
+        // A surface point, pushed off along a random direction by the box's reach that way plus a gap (into
+        // the solid about half the time, where the box may still touch the surface).
+        const Eigen::Vector3d on = X_WM * test::randomPointOnTriangle(mesh, int(rng() % mesh.triangles.size()), rng);
+        const Eigen::Vector3d direction = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+        const double reach = (X_WB.linear().transpose() * direction).cwiseAbs().dot(half);
+        X_WB.translation() = on + (reach + (0.002 + 0.028 * uniform(rng)) * size) * direction;
+        const double expected = bruteForceBoxDistance(model, mesh, X_WM, X_WB, half);
+        const BoxDistance got = computeBoxDistance(model, X_WM, X_WB, half);
+        const std::string at = name + " " + aspect_name + " pose " + std::to_string(i);
+        ASSERT_GE(got.triangle, 0) << at;
+        EXPECT_NEAR(got.distance, expected, 1e-9 * size) << at;
+        EXPECT_NEAR((got.box_point - got.mesh_point).norm(), got.distance, 1e-9 * size) << at;
+        if (!(expected > 0)) continue;
+        ++apart;
+        const BoxDistance above = computeBoxDistance(model, X_WM, X_WB, half, expected * (1 + 1e-6));
+        EXPECT_GE(above.triangle, 0) << at;
+        EXPECT_NEAR(above.distance, expected, 1e-9 * size) << at;
+        EXPECT_EQ(computeBoxDistance(model, X_WM, X_WB, half, expected * (1 - 1e-6)).triangle, -1) << at;
+      }
+      EXPECT_GT(apart, 5) << name << " " << aspect_name;
+    }
+  }
+}
+
 // The query takes its exact point-triangle and segment-segment distances from the active kernel build
 // (cfl/query_kernels.h): every build this CPU runs must give the same bits (distance, points, triangle), and
 // the generic one must match brute force, on poses near the mesh where many triangles reach the exact tests.

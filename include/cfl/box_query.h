@@ -25,7 +25,8 @@ struct BoxDistance {
 /// `upper_bound` (a length >= 0) are looked for.
 ///
 /// Exact: a best-first walk of the mesh's Bvh, nodes bounded by their spheres against the box, triangles by
-/// their spheres, their bounding boxes in the box's frame and their planes against the box's support, then
+/// their spheres, their bounding boxes in the box's frame, their planes against the box's support and their
+/// corners along the line from the box to their sphere's center, then
 /// by the separating-axis gap (box axes, triangle normal, the nine axis-edge cross products), which is <= 0
 /// exactly when the triangle meets the box. Apart, a triangle's distance is the least over the features a
 /// closest pair can have (a triangle corner against the box, a box corner against the triangle, a box edge

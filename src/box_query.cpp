@@ -238,10 +238,10 @@ struct BoxFrame {
 #endif
 };
 
-// The gap from the box to the sphere of center c (frame M) and radius r: the distance from the center to the
-// box, less r. The same operations, in the same order, one sphere at a time or two, so that which spheres
-// a query skips does not depend on how many it bounds at once.
-inline double sphereReach(const BoxFrame& box, const double* c, double r) {
+// The squared distance from point c (frame M) to the box, and the gap from the box to the sphere of center c
+// and radius r: the distance from the center to the box, less r. The same operations, in the same order, one
+// sphere at a time or two, so that which spheres a query skips does not depend on how many it bounds at once.
+inline double boxSquaredDistance(const BoxFrame& box, const double* c) {
   double squared = 0;
   for (int k = 0; k < 3; ++k) {
     const double* row = box.rotation[k];
@@ -249,7 +249,10 @@ inline double sphereReach(const BoxFrame& box, const double* c, double r) {
     const double d = p - std::min(std::max(p, -box.half[k]), box.half[k]);
     squared += d * d;
   }
-  return std::sqrt(squared) - r;
+  return squared;
+}
+inline double sphereReach(const BoxFrame& box, const double* c, double r) {
+  return std::sqrt(boxSquaredDistance(box, c)) - r;
 }
 
 #if defined(__SSE2__)
@@ -276,17 +279,8 @@ inline void boxSquaredDistance2(const BoxFrame& box, const double* c0, const dou
 #if defined(__SSE2__)
   _mm_storeu_pd(out, boxSquaredDistance2(box, c0, c1));
 #else
-  for (int i = 0; i < 2; ++i) {
-    const double* c = i == 0 ? c0 : c1;
-    double squared = 0;
-    for (int k = 0; k < 3; ++k) {
-      const double* row = box.rotation[k];
-      const double p = row[0] * c[0] + row[1] * c[1] + row[2] * c[2] + box.shift[k];
-      const double d = p - std::min(std::max(p, -box.half[k]), box.half[k]);
-      squared += d * d;
-    }
-    out[i] = squared;
-  }
+  out[0] = boxSquaredDistance(box, c0);
+  out[1] = boxSquaredDistance(box, c1);
 #endif
 }
 

@@ -1,6 +1,7 @@
 #include "cfl/bvh.h"
 
 #include "detail/bvh_build.h"
+#include "detail/float_rounding.h"
 
 #include <Eigen/Eigenvalues>
 
@@ -60,19 +61,6 @@ Eigen::Vector3d enclosingCenter(const ForEachPoint& forEachPoint, const Eigen::V
     center += (farthest - center) / double(i + 1);
   }
   return best;
-}
-
-// The largest float at most x, and the smallest at least x: an infinity where x is beyond float's range
-// (validateMesh allows coordinates up to 1e50), which the box tests take as no bound on that side.
-float floatBelow(double x) {
-  float f = static_cast<float>(x);
-  if (double(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
-  return f;
-}
-float floatAbove(double x) {
-  float f = static_cast<float>(x);
-  if (double(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
-  return f;
 }
 
 // Split choice. The median split by count keeps the tree balanced, which is right where the triangles are
@@ -238,8 +226,8 @@ struct BvhBuilder {
     }
     {
       for (int axis = 0; axis < 3; ++axis) {
-        node.box_min[axis] = floatBelow(box.min[axis]);
-        node.box_max[axis] = floatAbove(box.max[axis]);
+        node.box_min[axis] = detail::floatBelow(box.min[axis]);
+        node.box_max[axis] = detail::floatAbove(box.max[axis]);
       }
       node.center = center;
       node.radius = std::sqrt(radius_squared);

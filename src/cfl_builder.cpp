@@ -624,8 +624,6 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     return flush && early_pending_count > 0 && runEarlyPending(listed);
   };
 
-  // Whether the cell splits whatever the rest of its list (see the rule after the walk), and the state of that
-  // rule: the certain entries so far and their shortfalls.
   // The rule's distance test compares the size with the listed lower bound, the least full bound of the
   // entries, which may lie far below the center's distance (a cell beside the mesh, whose center is just
   // outside the split range). When the center's nearest triangle is certain to be listed, its full bound caps
@@ -639,6 +637,8 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     const double full = detail::cubeTriangleSeparatingAxisBound(center, half, c[0], c[1], c[2], d_min);
     return size > kFarCellRatio * full * (1 + 1e-6);
   };
+  // Whether the cell splits whatever the rest of its list (see the rule after the walk), and the state of that
+  // rule: the certain entries so far and their shortfalls.
   const bool split_early = split_edges && context.early_split && !count_early &&
                            (size > kFarCellRatio * center_distance * (1 + 1e-6) || nearestListedNear());
   const double largest_mean = size / (kSmallestCell * (1 + 1e-6));

@@ -1,6 +1,7 @@
 #include "cfl/mesh_model.h"
 
 #include "detail/exact_arithmetic.h"
+#include "detail/float_rounding.h"
 #include "detail/triangle_spine.h"
 
 #include <algorithm>
@@ -81,12 +82,7 @@ std::vector<float> nodeSpineRadii(const TriangleMesh& mesh, const Bvh& bvh) {
                           }
                         }
                         const double margin = 1e-12 * (node.obb_center.cwiseAbs().sum() + node.obb_half.sum());
-                        const double radius = std::sqrt(squared) * (1 + 1e-12) + margin;
-                        float rounded = static_cast<float>(radius);
-                        if (double(rounded) < radius) {
-                          rounded = std::nextafter(rounded, std::numeric_limits<float>::infinity());
-                        }
-                        radii[n] = rounded;
+                        radii[n] = detail::floatAbove(std::sqrt(squared) * (1 + 1e-12) + margin);
                       }
                     });
   return radii;

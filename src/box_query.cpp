@@ -355,9 +355,8 @@ void searchBvh(const MeshModel& mesh, const BoxFrame& box, Best& best) {
     return squared >= reach * reach;
   };
   if (!nodes.empty()) {
-    double squared[2];
-    boxSquaredDistance2(box, nodes[0].center.data(), nodes[0].center.data(), squared);
-    if (!outOfReach(squared[0], nodes[0].radius)) stack[top++] = {0, squared[0], nodes[0].radius};
+    const double squared = boxSquaredDistance(box, nodes[0].center.data());
+    if (!outOfReach(squared, nodes[0].radius)) stack[top++] = {0, squared, nodes[0].radius};
   }
   while (top > 0) {
     const Pending pending = stack[--top];

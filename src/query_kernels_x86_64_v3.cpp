@@ -1,6 +1,6 @@
 // The x86-64-v3 kernel table (see cfl/query_kernels.h; chosen at run time in cfl_query.cpp) and the mesh
-// search's list filter for it. The triangle kernels and the point query's scans of this table are in
-// triangle_distance_x86_64_v3.cpp.
+// search's list filter and node pair bound for it. The triangle kernels and the point query's scans of this
+// table are in triangle_distance_x86_64_v3.cpp.
 //
 // Every header is included before the target pragma: GCC compiles a function for the target in force where
 // it is declared, so the header functions this file does not inline stay baseline code, and the linker,
@@ -229,7 +229,8 @@ inline __m256d rowsTimes(const __m256d row[3], const double* x, const double* y,
 
 }  // namespace
 
-// A node pair's bound costs three 3x3 products scalar; with each box's axes in lanes, a third of them.
+// The node pair bound's three 3x3 products (the line and the other box's axes in each box's frame), one
+// vector sum of three products per column, with each box's axes in lanes.
 double orientedBoxPairBound(const Eigen::Matrix3d& axes_a, const Eigen::Vector3d& center_a,
                             const Eigen::Vector3d& half_a, const Eigen::Matrix3d& axes_b,
                             const Eigen::Vector3d& center_b, const Eigen::Vector3d& half_b, double bound,

@@ -889,26 +889,13 @@ class Search {
                             (b.center - node_a.center).norm() - node_a.radius) -
                    node_b.radius;
     if (bound >= threshold) return bound;
-    // The line between the boxes' centers, in each box's frame: far apart, nearly the distance, and it needs
-    // no product of the two frames.
-    const Eigen::Vector3d line = b.obb_center - node_a.obb_center;
-    const Eigen::Vector3d offset = node_a.obb_axes.transpose() * line;
-    const Eigen::Vector3d offset_in_b = b.obb_axes.transpose() * line;
     const Eigen::Vector3d& half_a = node_a.obb_half;
     const Eigen::Vector3d& half_b = node_b.obb_half;
-    const double length = line.norm();
-    if (length > 0) {
-      const double reach_a = half_a.dot(offset.cwiseAbs());
-      const double reach_b = half_b.dot(offset_in_b.cwiseAbs());
-      bound = std::max(bound, (length * length - reach_a - reach_b) / length);
-      if (bound >= threshold) return bound;
-    }
-    // Each box's axes, with the absolute cosines between the two sets of axes: along A's axis i the box of A
-    // reaches half_a[i] and B's box sum_j cosines(i, j) half_b[j], and the other way round.
-    const Eigen::Matrix3d cosines = (node_a.obb_axes.transpose() * b.obb_axes).cwiseAbs();
-    const Eigen::Vector3d gap_a = offset.cwiseAbs() - half_a - cosines * half_b;
-    const Eigen::Vector3d gap_b = offset_in_b.cwiseAbs() - half_b - cosines.transpose() * half_a;
-    bound = std::max({bound, gap_a.maxCoeff(), gap_b.maxCoeff()});
+    bound = kernels_.box_pair_bound != nullptr
+                ? kernels_.box_pair_bound(node_a.obb_axes, node_a.obb_center, half_a, b.obb_axes, b.obb_center,
+                                          half_b, bound, threshold)
+                : detail::orientedBoxPairBound(node_a.obb_axes, node_a.obb_center, half_a, b.obb_axes,
+                                               b.obb_center, half_b, bound, threshold);
     if (bound >= threshold || !(threshold > 0) || !(isNeedle(half_a) || isNeedle(half_b))) return bound;
     return std::max(bound, boxSpineLowerBound(node_a.obb_axes, node_a.obb_center, half_a, b.obb_axes, b.obb_center,
                                               half_b, kernels_.segment_segment, mesh_a_.node_spine_radii[std::size_t(a)],

@@ -20,6 +20,7 @@ const QueryKernelTable kGenericQueryKernels{QueryKernels::kGeneric,
                                             &generic::edgeAxesSeparate,
                                             /*scan_point_list=*/nullptr,
                                             /*scan_point_list_cached=*/nullptr,
-                                            /*nearest_triangle_bounded=*/nullptr};
+                                            /*nearest_triangle_bounded=*/nullptr,
+                                            /*box_pair_bound=*/nullptr};
 
 }  // namespace cfl::detail

@@ -1,6 +1,6 @@
 // The x86-64-v3 kernel table (see cfl/query_kernels.h; chosen at run time in cfl_query.cpp) and the mesh
-// search's list filter for it. The triangle kernels and the point query's scans of this table are in
-// triangle_distance_x86_64_v3.cpp.
+// search's list filter and node pair bound for it. The triangle kernels and the point query's scans of this
+// table are in triangle_distance_x86_64_v3.cpp.
 //
 // Every header is included before the target pragma: GCC compiles a function for the target in force where
 // it is declared, so the header functions this file does not inline stay baseline code, and the linker,
@@ -197,6 +197,80 @@ std::size_t filterListCandidates(const ListFilter& filter, const int* ids, std::
   return n;
 }
 
+namespace {
+
+// Three doubles into lanes 0-2, lane 3 zero, reading nothing past the third (a node's obb_half ends its
+// BvhNode, and the vector of nodes may end there).
+__m256d load3(const double* p) { return _mm256_maskload_pd(p, _mm256_set_epi64x(0, -1, -1, -1)); }
+
+// The rows of a 3x3 matrix (column-major, Eigen's order): row[k] holds coordinate k of its three columns in
+// lanes 0-2, and zero in lane 3. Reads only the matrix's nine doubles.
+inline void rowsOf(const double* m, __m256d row[3]) {
+  const __m256d c0 = _mm256_loadu_pd(m);      // m0 m1 m2 m3
+  const __m256d c1 = _mm256_loadu_pd(m + 3);  // m3 m4 m5 m6
+  const __m256d c2 = _mm256_permute4x64_pd(_mm256_loadu_pd(m + 5), _MM_SHUFFLE(0, 3, 2, 1));  // m6 m7 m8 m5
+  const __m256d zero = _mm256_setzero_pd();
+  const __m256d t0 = _mm256_unpacklo_pd(c0, c1);    // m0 m3 m2 m5
+  const __m256d t1 = _mm256_unpackhi_pd(c0, c1);    // m1 m4 -  -
+  const __m256d t2 = _mm256_unpacklo_pd(c2, zero);  // m6 0  m8 0
+  const __m256d t3 = _mm256_unpackhi_pd(c2, zero);  // m7 0  -  0
+  row[0] = _mm256_permute2f128_pd(t0, t2, 0x20);
+  row[1] = _mm256_permute2f128_pd(t1, t3, 0x20);
+  row[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
+}
+
+// (row[0] x + row[1] y) + row[2] z, for x, y, z broadcast from memory: lane i is column i's dot product
+// with (x, y, z), added as orientedBoxPairBound adds it.
+inline __m256d rowsTimes(const __m256d row[3], const double* x, const double* y, const double* z) {
+  return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(row[0], _mm256_broadcast_sd(x)),
+                                     _mm256_mul_pd(row[1], _mm256_broadcast_sd(y))),
+                       _mm256_mul_pd(row[2], _mm256_broadcast_sd(z)));
+}
+
+}  // namespace
+
+// The node pair bound's three 3x3 products (the line and the other box's axes in each box's frame), one
+// vector sum of three products per column, with each box's axes in lanes.
+double orientedBoxPairBound(const Eigen::Matrix3d& axes_a, const Eigen::Vector3d& center_a,
+                            const Eigen::Vector3d& half_a, const Eigen::Matrix3d& axes_b,
+                            const Eigen::Vector3d& center_b, const Eigen::Vector3d& half_b, double bound,
+                            double threshold) {
+  const __m256d sign = _mm256_set1_pd(-0.0);
+  const double line[3] = {center_b[0] - center_a[0], center_b[1] - center_a[1], center_b[2] - center_a[2]};
+  __m256d rows_a[3], rows_b[3];
+  rowsOf(axes_a.data(), rows_a);
+  rowsOf(axes_b.data(), rows_b);
+  const __m256d offset_a = _mm256_andnot_pd(sign, rowsTimes(rows_a, line, line + 1, line + 2));
+  const __m256d offset_b = _mm256_andnot_pd(sign, rowsTimes(rows_b, line, line + 1, line + 2));
+  const __m256d h_a = load3(half_a.data()), h_b = load3(half_b.data());
+  const double length = std::sqrt((line[0] * line[0] + line[1] * line[1]) + line[2] * line[2]);
+  if (length > 0) {
+    // Lanes 0 and 2 of the pairwise sums: (a0 + a1) and a2 + 0 for A, (b0 + b1) and b2 + 0 for B.
+    const __m256d pairs = _mm256_hadd_pd(_mm256_mul_pd(h_a, offset_a), _mm256_mul_pd(h_b, offset_b));
+    const __m128d reach = _mm_add_pd(_mm256_castpd256_pd128(pairs), _mm256_extractf128_pd(pairs, 1));
+    const double reach_a = _mm_cvtsd_f64(reach), reach_b = _mm_cvtsd_f64(_mm_unpackhi_pd(reach, reach));
+    bound = std::max(bound, ((length * length - reach_a) - reach_b) / length);
+    if (bound >= threshold) return bound;
+  }
+  // Lane i of cosine_column[j]: |axis i of a . axis j of b|; lane j of cosine_row[i]: the same.
+  const double* a = axes_a.data();
+  const double* b = axes_b.data();
+  __m256d cosine_column[3], cosine_row[3];
+  for (int k = 0; k < 3; ++k) {
+    cosine_column[k] = _mm256_andnot_pd(sign, rowsTimes(rows_a, b + 3 * k, b + 3 * k + 1, b + 3 * k + 2));
+    cosine_row[k] = _mm256_andnot_pd(sign, rowsTimes(rows_b, a + 3 * k, a + 3 * k + 1, a + 3 * k + 2));
+  }
+  const __m256d reach_b = rowsTimes(cosine_column, half_b.data(), half_b.data() + 1, half_b.data() + 2);
+  const __m256d reach_a = rowsTimes(cosine_row, half_a.data(), half_a.data() + 1, half_a.data() + 2);
+  __m256d gap = _mm256_max_pd(_mm256_sub_pd(_mm256_sub_pd(offset_a, h_a), reach_b),
+                              _mm256_sub_pd(_mm256_sub_pd(offset_b, h_b), reach_a));
+  // Lane 3 holds no axis.
+  gap = _mm256_blend_pd(gap, _mm256_set1_pd(-std::numeric_limits<double>::infinity()), 0x8);
+  __m128d most = _mm_max_pd(_mm256_castpd256_pd128(gap), _mm256_extractf128_pd(gap, 1));
+  most = _mm_max_sd(most, _mm_unpackhi_pd(most, most));
+  return std::max(bound, _mm_cvtsd_f64(most));
+}
+
 #include "detail/edge_axes_kernel.inc"
 
 }  // namespace x86_64_v3
@@ -211,7 +285,8 @@ const QueryKernelTable kX86_64_V3QueryKernels{QueryKernels::kX86_64_V3,
                                               &x86_64_v3::edgeAxesSeparate,
                                               &x86_64_v3::scanPointList,
                                               &x86_64_v3::scanPointListCached,
-                                              &x86_64_v3::nearestTriangleBounded};
+                                              &x86_64_v3::nearestTriangleBounded,
+                                              &x86_64_v3::orientedBoxPairBound};
 
 }  // namespace cfl::detail
 

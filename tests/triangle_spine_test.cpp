@@ -2,12 +2,15 @@
 // (cfl::triangleTriangleSquaredDistance, itself checked against independent references in
 // triangle_distance_test): it must never exceed the distance, on triangles of every shape, slivers and
 // degenerate ones included, and it must stay close where two flat slivers face each other, which is what
-// it is for. The same for oriented boxes (boxSpineLowerBound), against the exact distance between two boxes
-// taken as the least distance between their faces' triangles.
+// it is for. The same for oriented boxes (boxSpineLowerBound, and the search's separating-axes bound
+// orientedBoxPairBound with its vector kernel), against the exact distance between two boxes taken as the
+// least distance between their faces' triangles.
 
+#include "../src/detail/query_kernels.h"
 #include "../src/detail/triangle_spine.h"
 
 #include "cfl/mesh_model.h"
+#include "cfl/query_kernels.h"
 #include "cfl/triangle_distance.h"
 
 #include <gtest/gtest.h>
@@ -17,6 +20,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <utility>
@@ -206,6 +210,50 @@ TEST(BoxSpine, NeverExceedsTheDistanceBetweenBoxes) {
   }
   EXPECT_GT(positive, count / 10);  // not vacuous on separated pairs
   EXPECT_GT(close, count / 50);     // and tight on some (needles and slabs facing each other)
+}
+
+// The oriented boxes' separating axes (the line between the centers and each box's axes; what the search
+// bounds a node pair with, detail/box_pair_bound.h) in the generic build and through every kernel table this
+// CPU runs: never above the distance between the boxes, the same bits in every table, at every threshold
+// (where it may return early), and tight where the boxes lie apart along an axis.
+TEST(BoxPairBound, NeverExceedsTheDistanceBetweenBoxesInEveryTable) {
+  using Bound = double (*)(const Eigen::Matrix3d&, const Vec&, const Vec&, const Eigen::Matrix3d&, const Vec&,
+                           const Vec&, double, double);
+  std::vector<Bound> kernels;
+#if CFL_X86_64_V3_KERNELS
+  if (cfl::queryKernelsAvailable(cfl::QueryKernels::kX86_64_V3)) {
+    kernels.push_back(cfl::detail::kX86_64_V3QueryKernels.box_pair_bound);
+  }
+#endif
+  ASSERT_EQ(cfl::detail::kGenericQueryKernels.box_pair_bound, nullptr);  // the search runs the scalar bound
+  std::mt19937_64 rng(20261129);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  int positive = 0, close = 0;
+  const int count = 20000;
+  for (int n = 0; n < count; ++n) {
+    const auto [scale, offset] = randomScaleAndOffset(rng, n);
+    const Vec apart = 3 * scale * Vec(unit(rng), unit(rng), unit(rng));
+    const Box a = randomBox(rng, offset, scale), b = randomBox(rng, offset + apart, scale);
+    const double exact = boxDistance(a, b);
+    const double bound = cfl::detail::orientedBoxPairBound(a.axes, a.center, a.half, b.axes, b.center, b.half,
+                                                           -kInfinity, kInfinity);
+    ASSERT_LE(bound, exact + 1e-13 * (offset.norm() + 8 * scale)) << "pair " << n << ": " << bound << " > " << exact;
+    positive += bound > 0;
+    close += bound > 0.99 * exact && exact > 0;
+    for (const Bound kernel : kernels) {
+      const double start = n % 2 == 0 ? -kInfinity : exact * (0.5 + 0.5 * unit(rng));
+      for (const double threshold : {kInfinity, exact, 0.5 * exact, 0.0}) {
+        const double reference =
+            cfl::detail::orientedBoxPairBound(a.axes, a.center, a.half, b.axes, b.center, b.half, start, threshold);
+        const double fast = kernel(a.axes, a.center, a.half, b.axes, b.center, b.half, start, threshold);
+        ASSERT_EQ(std::memcmp(&fast, &reference, sizeof fast), 0)
+            << "pair " << n << " at threshold " << threshold << ": kernel " << fast << ", scalar " << reference;
+      }
+    }
+  }
+  EXPECT_GT(positive, count / 10);  // not vacuous on separated pairs
+  EXPECT_GT(close, count / 100);    // and tight on some (boxes apart along an axis)
 }
 
 // Two needles (boxes 10 long, up to 0.05 across) in parallel planes h apart, crossing at a random angle over

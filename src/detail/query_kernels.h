@@ -1,14 +1,15 @@
 #pragma once
 // The query's hot kernels, one table per instruction set (see cfl/query_kernels.h): the triangle kernels,
-// the mesh search's list filter and the point query's scans. The search (distance_search.cpp), the point
-// query and the builder are compiled once, for the library's flags, and call these through the table that
-// activeQueryKernelTable() returns. Each table lives in a file of its own: query_kernels_generic.cpp, and
+// the mesh search's list filter and node pair bound, and the point query's scans. The search
+// (distance_search.cpp), the point query and the builder are compiled once, for the library's flags, and
+// call these through the table that activeQueryKernelTable() returns. Each table lives in a file of its own: query_kernels_generic.cpp, and
 // query_kernels_x86_64_v3.cpp with triangle_distance_x86_64_v3.cpp, the only code compiled for x86-64-v3.
 
 #include "cfl/cfl_query.h"
 #include "cfl/error.h"
 #include "cfl/query_kernels.h"
 #include "cfl/triangle_distance.h"
+#include "box_pair_bound.h"
 #include "box_triangle_bound.h"
 #include "exact_arithmetic.h"
 #include "nearest_triangle.h"
@@ -116,6 +117,12 @@ struct QueryKernelTable {
   /// nearestTriangleCompactBounded (detail/nearest_triangle.h): the same answer.
   void (*nearest_triangle_bounded)(const MeshModel& model, const Eigen::Vector3d& p, double& best_squared,
                                    int& best_triangle, Eigen::Vector3d* closest);
+  /// orientedBoxPairBound (detail/box_pair_bound.h), the oriented boxes' part of the search's bound between
+  /// two Bvh nodes: the same answer, bit for bit.
+  double (*box_pair_bound)(const Eigen::Matrix3d& axes_a, const Eigen::Vector3d& center_a,
+                           const Eigen::Vector3d& half_a, const Eigen::Matrix3d& axes_b,
+                           const Eigen::Vector3d& center_b, const Eigen::Vector3d& half_b, double bound,
+                           double threshold);
 };
 
 extern const QueryKernelTable kGenericQueryKernels;  // query_kernels_generic.cpp
@@ -155,5 +162,10 @@ std::size_t filterListCandidates(const ListFilter& filter, const int* ids, std::
                                  std::size_t& near);
 bool edgeAxesSeparate(const Eigen::Vector3d a[3], const Eigen::Vector3d b[3], int corner_a, int corner_b,
                       double threshold);
+// The two boxes' axes as rows of three lanes (one lane per axis), their products broadcast by coordinate.
+double orientedBoxPairBound(const Eigen::Matrix3d& axes_a, const Eigen::Vector3d& center_a,
+                            const Eigen::Vector3d& half_a, const Eigen::Matrix3d& axes_b,
+                            const Eigen::Vector3d& center_b, const Eigen::Vector3d& half_b, double bound,
+                            double threshold);
 }  // namespace cfl::detail::x86_64_v3
 #endif

@@ -808,8 +808,8 @@ class Search {
         }
         continue;
       }
-      const double d_left = detail::pointBoxSquaredDistance(tb.center, nodes[node.first].box());
-      const double d_right = detail::pointBoxSquaredDistance(tb.center, nodes[node.first + 1].box());
+      const double d_left = detail::nodeBoxSquaredDistance(tb.center, nodes[node.first]);
+      const double d_right = detail::nodeBoxSquaredDistance(tb.center, nodes[node.first + 1]);
       if (d_left <= d_right) {
         stack[top++] = node.first + 1;
         stack[top++] = node.first;
@@ -847,7 +847,7 @@ class Search {
     }
     auto spill = [&](int node) {
       const double gap =
-          std::sqrt(detail::pointBoxSquaredDistance(tb.center, mesh_a_.bvh.nodes[node].box())) - tb.radius;
+          std::sqrt(detail::nodeBoxSquaredDistance(tb.center, mesh_a_.bvh.nodes[node])) - tb.radius;
       const double bound = std::max(lower_bound, gap);
       if (bound < pruneThreshold()) push(Scratch::HeapEntry{searchKey(bound, tb.radius), kFirstTriangleOfB - n, node});
     };
@@ -885,9 +885,11 @@ class Search {
   double nodePairLowerBound(int a, const PlacedNode& b, double threshold) const {
     const BvhNode& node_a = mesh_a_.bvh.nodes[a];
     const BvhNode& node_b = *b.node;
-    double bound = std::max(std::sqrt(detail::pointBoxSquaredDistance(b.center, node_a.box())),
-                            (b.center - node_a.center).norm() - node_a.radius) -
-                   node_b.radius;
+    const double line[3] = {b.center[0] - node_a.center[0], b.center[1] - node_a.center[1],
+                            b.center[2] - node_a.center[2]};
+    const double centers = std::sqrt((line[0] * line[0] + line[1] * line[1]) + line[2] * line[2]);
+    double bound =
+        std::max(std::sqrt(detail::nodeBoxSquaredDistance(b.center, node_a)), centers - node_a.radius) - node_b.radius;
     if (bound >= threshold) return bound;
     const Eigen::Vector3d& half_a = node_a.obb_half;
     const Eigen::Vector3d& half_b = node_b.obb_half;
@@ -970,7 +972,7 @@ class Search {
   // A prepared triangle of B against node a of A's Bvh.
   double triangleOfBNodeLowerBound(const PreparedTriangle& tb, int a, double threshold) const {
     const BvhNode& node = mesh_a_.bvh.nodes[a];
-    const double box_gap = std::sqrt(detail::pointBoxSquaredDistance(tb.center, node.box())) - tb.radius;
+    const double box_gap = std::sqrt(detail::nodeBoxSquaredDistance(tb.center, node)) - tb.radius;
     if (box_gap >= threshold) return box_gap;
     return std::max(box_gap, triangleNodeLowerBound(tb.corners, tb.center, tb.radius, tb.normal, tb.offset, node.center,
                                                     node.radius, node.obb_axes, node.obb_center, node.obb_half,

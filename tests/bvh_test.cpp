@@ -3,6 +3,7 @@
 
 #include "cfl/bvh.h"
 #include "../src/detail/bvh_build.h"
+#include "../src/detail/nearest_triangle.h"
 #include "support/test_meshes.h"
 
 #include <tbb/task_arena.h>
@@ -10,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <random>
 #include <cstring>
 #include <sstream>
 #include <string>
@@ -219,6 +221,36 @@ TEST(Bvh, FloatBoxesHoldTheVerticesFarFromTheOriginAndPastFloatRange) {
       }
     }
   }
+}
+
+// The mesh search's distance from a point to a node's box (nodeBoxSquaredDistance, read from the float
+// bounds) against the distance to the point's clamp into the box, at random points inside, beside, past
+// the corners of and far from every node of meshes of several scales: a gap too large would prune pairs the
+// search must test.
+TEST(Bvh, NodeBoxDistanceIsTheDistanceToTheClampedPoint) {
+  std::mt19937_64 rng(20261127);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  int inside = 0, outside = 0;
+  for (const double scale : {1.0, 1e-3, 1e6}) {
+    TriangleMesh mesh = test::makeTorusKnot();
+    for (Eigen::Vector3d& v : mesh.vertices) v *= scale;
+    const Bvh bvh = buildBvh(mesh, 4);
+    for (const BvhNode& node : bvh.nodes) {
+      const Aabb box = node.box();
+      const Eigen::Vector3d center = box.center(), half = 0.5 * box.size();
+      for (const double reach : {0.5, 1.0, 1.5, 4.0}) {
+        const Eigen::Vector3d p =
+            center + reach * half.cwiseProduct(Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
+        const Eigen::Vector3d clamped = p.cwiseMax(box.min).cwiseMin(box.max);
+        const double expected = (p - clamped).squaredNorm();
+        ASSERT_NEAR(detail::nodeBoxSquaredDistance(p, node), expected, 1e-15 * expected)
+            << "scale " << scale << " reach " << reach;
+        (expected == 0 ? inside : outside) += 1;
+      }
+    }
+  }
+  EXPECT_GT(inside, 100);
+  EXPECT_GT(outside, 100);
 }
 
 // A mesh of ordinary size may hold a few triangles far below its scale (validateMesh bounds only the whole

@@ -23,6 +23,17 @@ inline double pointBoxSquaredDistance(const Eigen::Vector3d& p, const Aabb& box)
   return (below + above).squaredNorm();
 }
 
+/// pointBoxSquaredDistance(p, node.box()) read straight from the node's float bounds, as scalar sums in a
+/// fixed order: the mesh-mesh search bounds every node pair with it, and it is built for a baseline ISA,
+/// where Eigen's small vector expressions cost more than the arithmetic.
+inline double nodeBoxSquaredDistance(const Eigen::Vector3d& p, const BvhNode& node) {
+  double gap[3];
+  for (int i = 0; i < 3; ++i) {
+    gap[i] = std::max(std::max(double(node.box_min[i]) - p[i], p[i] - double(node.box_max[i])), 0.0);
+  }
+  return (gap[0] * gap[0] + gap[1] * gap[1]) + gap[2] * gap[2];
+}
+
 /// As nearestTriangle, same contract, on MeshModel::compact_nodes (which must match the Bvh) and the
 /// corners in leaf order: an eighth of the node memory, one indirection less per triangle. Depth-first,
 /// nearer child first; a node popped after the best fell below its bound is skipped. Ties go to the triangle

@@ -11,8 +11,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <random>
 #include <cstring>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>

@@ -2,8 +2,9 @@
 // The query's hot kernels, one table per instruction set (see cfl/query_kernels.h): the triangle kernels,
 // the mesh search's list filter and node pair bound, and the point query's scans. The search
 // (distance_search.cpp), the point query and the builder are compiled once, for the library's flags, and
-// call these through the table that activeQueryKernelTable() returns. Each table lives in a file of its own: query_kernels_generic.cpp, and
-// query_kernels_x86_64_v3.cpp with triangle_distance_x86_64_v3.cpp, the only code compiled for x86-64-v3.
+// call these through the table that activeQueryKernelTable() returns. Each table lives in a file of its
+// own: query_kernels_generic.cpp, and query_kernels_x86_64_v3.cpp with triangle_distance_x86_64_v3.cpp,
+// the only code compiled for x86-64-v3.
 
 #include "cfl/cfl_query.h"
 #include "cfl/error.h"

@@ -144,6 +144,9 @@ struct Topology {
   std::vector<int> edge_neighbours;  // leaf positions too
 };
 
+// See makeTopology.
+constexpr std::ptrdiff_t kMostTrianglesPerCullingEdge = 16;
+
 Topology makeTopology(const MeshModel& geometry) {
   const auto& triangles = geometry.mesh.triangles;
   const auto& order = geometry.bvh.triangle_ids;
@@ -187,7 +190,14 @@ Topology makeTopology(const MeshModel& geometry) {
         const std::uint64_t edge = key(u, v);
         auto first = std::lower_bound(edges.begin(), edges.end(), std::make_pair(edge, std::numeric_limits<int>::min()));
         auto last = first;
-        for (; last != edges.end() && last->first == edge; ++last) neighbours += last->second != n;
+        while (last != edges.end() && last->first == edge) ++last;
+        // Every triangle of an edge lists all the others, so an edge shared by k triangles costs k^2
+        // neighbours and each culling test of them scans k: quadratic time and memory on a mesh of many
+        // copies of one face. Past a few triangles (non-manifold fins, duplicated faces) such an edge never
+        // culls, for all of its triangles alike, so that the neighbour relation stays symmetric; culling
+        // less keeps longer lists, never wrong ones.
+        if (last - first > kMostTrianglesPerCullingEdge) continue;
+        for (auto it = first; it != last; ++it) neighbours += it->second != n;
         run_begin[n][e] = std::int32_t(first - edges.begin());
         run_end[n][e] = std::int32_t(last - edges.begin());
       }
@@ -1417,6 +1427,10 @@ void fitListsInBudget(const BuildContext& context, const RegionTree& tree, std::
 }
 
 }  // namespace
+
+std::int64_t detail::topologyNeighbourCount(const MeshModel& geometry) {
+  return std::int64_t(makeTopology(geometry).edge_neighbours.size());
+}
 
 CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   const auto start = std::chrono::steady_clock::now();

@@ -5,6 +5,7 @@
 
 #include "cfl/cfl_model.h"
 #include "cfl/cfl_query.h"
+#include "cfl/mesh_model.h"
 #include "cfl/query_kernels.h"
 #include "../src/detail/builder_test_hooks.h"
 #include "support/test_meshes.h"
@@ -13,12 +14,14 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <set>
 #include <string>
 #include <thread>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 namespace cfl {
@@ -887,6 +890,57 @@ TEST(CflBuilder, PointLikeAndFlatMeshesGetUsableRegions) {
       EXPECT_TRUE(std::isfinite(model.regions.root_size));
       EXPECT_EQ(checkConservative(model, *mesh, 300, 77, "degenerate extent"), 0);
     }
+  }
+}
+
+// Edges shared by many triangles: a book of fins hinged on one edge of a closed torus, and some of the
+// torus's faces repeated a dozen times. Culling must stay conservative where such edges stop culling and
+// where the fins still cull, and the neighbours it keeps must stay linear in the triangles: every triangle
+// of an edge lists all the others, which on many copies of one face is quadratic.
+TriangleMesh makeCrowdedEdgeMesh(int fins, int copies) {
+  const double kPi = std::acos(-1.0);
+  TriangleMesh mesh = test::makeTorus(1.0, 0.35, 16, 8);
+  const std::array<int, 3> hinge_face = mesh.triangles[0];
+  const Eigen::Vector3d a = mesh.vertices[hinge_face[0]], b = mesh.vertices[hinge_face[1]];
+  const Eigen::Vector3d axis = (b - a).normalized();
+  const Eigen::Vector3d across = axis.unitOrthogonal();
+  for (int f = 0; f < fins; ++f) {
+    const Eigen::Vector3d out = Eigen::AngleAxisd(2 * kPi * (f + 0.5) / fins, axis) * across;
+    const int tip = int(mesh.vertices.size());
+    mesh.vertices.push_back(0.5 * (a + b) + 0.3 * out);
+    mesh.triangles.push_back({hinge_face[0], hinge_face[1], tip});
+  }
+  const std::size_t faces = mesh.triangles.size();
+  for (std::size_t t = 0; t < faces; t += 37) {
+    for (int k = 0; k < copies; ++k) mesh.triangles.push_back(mesh.triangles[t]);
+  }
+  return mesh;
+}
+
+TEST(CflBuilder, EdgesOfManyTrianglesKeepListsConservative) {
+  for (const auto& [fins, copies] : {std::pair{3, 1}, std::pair{6, 2}, std::pair{40, 12}}) {
+    const TriangleMesh mesh = makeCrowdedEdgeMesh(fins, copies);
+    for (int resolution : {0, 10}) {
+      const std::string label = std::to_string(fins) + " fins, " + std::to_string(copies) + " copies, resolution " +
+                                std::to_string(resolution);
+      const CflModel model = buildCflModel(mesh, options(resolution, true));
+      EXPECT_EQ(checkConservative(model, mesh, 1500, 4100 + resolution, label), 0) << label;
+    }
+  }
+}
+
+TEST(CflBuilder, TopologyNeighboursStayLinearOnManyCopiesOfOneFace) {
+  const TriangleMesh torus = test::makeTorus(1.0, 0.35, 16, 8);
+  const std::int64_t manifold = detail::topologyNeighbourCount(makeMeshModel(torus));
+  // A closed manifold mesh: each edge of each triangle has exactly one neighbour.
+  EXPECT_EQ(manifold, 3 * std::int64_t(torus.triangles.size()));
+  for (int copies : {20, 2000}) {
+    TriangleMesh mesh = torus;
+    for (int k = 0; k < copies; ++k) mesh.triangles.push_back(torus.triangles[5]);
+    const std::int64_t count = detail::topologyNeighbourCount(makeMeshModel(mesh));
+    // The copied face's three edges are crowded and keep no neighbours, for its copies, itself and the three
+    // torus faces across them; every other edge keeps its one.
+    EXPECT_EQ(count, manifold - 6) << copies << " copies";
   }
 }
 

@@ -5,6 +5,10 @@
 
 #include <cstdint>
 
+namespace cfl {
+struct MeshModel;
+}
+
 namespace cfl::detail {
 
 /// Whether a cell may decide to split before its list is complete, once the split rule is certain to hold
@@ -14,5 +18,9 @@ void setEarlySplitDecisions(bool enabled);
 
 /// How many cells have split that way since the program started, over all builds (thread safe).
 std::int64_t earlySplitDecisionCount();
+
+/// How many (triangle, edge neighbour) entries topology culling keeps for `geometry`: what bounds its memory
+/// and the work of each culling test.
+std::int64_t topologyNeighbourCount(const MeshModel& geometry);
 
 }  // namespace cfl::detail

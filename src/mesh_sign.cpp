@@ -108,7 +108,11 @@ std::int64_t countSelfIntersections(const MeshModel& model, const std::vector<st
       stack.push_back({a.first, a.first});
       continue;
     }
+    // The spheres too: they are in double, while the float boxes lose their use on a mesh far from the
+    // origin for its size (at 1e7 times its size, every box spans the whole mesh).
     if (!overlap(a.box(), b.box())) continue;
+    const double reach = a.radius + b.radius;
+    if ((a.center - b.center).squaredNorm() > reach * reach * (1 + 1e-9)) continue;
     if (a.isLeaf() && b.isLeaf()) {
       for (int x = a.first; x < a.first + a.count; ++x) {
         for (int y = b.first; y < b.first + b.count; ++y) {

@@ -4,12 +4,14 @@
 #include "cfl/cfl_file.h"
 #include "cfl/cfl_model.h"
 #include "cfl/mesh_sign.h"
+#include "cfl/triangle_distance.h"
 #include "support/sign_references.h"
 #include "support/test_meshes.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <random>
 #include <string>
 
@@ -165,6 +167,31 @@ TEST(MeshSign, ManyCrossingsStopAtTheCap) {
   const TriangleMesh soup = test::makeTriangleSoup(3000, 5, 0.3, 0.3);
   const MeshSign sign = analyze(soup);
   EXPECT_EQ(sign.closure.intersecting_pairs, 1000);
+}
+
+// The self-intersection walk prunes node pairs by their boxes (float) and their spheres (double): on a soup
+// near the origin and the same soup 1e7 times its size away, where every float box spans the whole soup and
+// only the spheres prune, it must find every crossing that a test of all pairs finds.
+TEST(MeshSign, SelfIntersectionsMatchAllPairsNearAndFarFromTheOrigin) {
+  const TriangleMesh soup = test::makeTriangleSoup(400, 11, 1.0, 0.25);
+  for (double offset : {0.0, 1e7}) {
+    TriangleMesh moved = soup;
+    for (Eigen::Vector3d& v : moved.vertices) v += Eigen::Vector3d(offset, -offset, 0.5 * offset);
+    std::int64_t all_pairs = 0;
+    for (std::size_t s = 0; s < moved.triangles.size(); ++s) {
+      for (std::size_t t = s + 1; t < moved.triangles.size(); ++t) {
+        Eigen::Vector3d p[3], q[3];
+        for (int k = 0; k < 3; ++k) {
+          p[k] = moved.vertices[moved.triangles[s][k]];
+          q[k] = moved.vertices[moved.triangles[t][k]];
+        }
+        all_pairs += trianglesIntersect(p, q);
+      }
+    }
+    ASSERT_GT(all_pairs, 20) << offset;
+    ASSERT_LT(all_pairs, 1000) << offset;  // below the count's cap
+    EXPECT_EQ(analyze(moved).closure.intersecting_pairs, all_pairs) << offset;
+  }
 }
 
 TEST(MeshSign, ModelsCarryTheAnalysis) {

@@ -393,6 +393,7 @@ struct BuildContext {
   // pointTriangleSquaredDistance of the same kernels (the same bits).
   detail::PointTriangle1 one;
   double largest_edge;  // the largest mean edge of a triangle
+  bool prune_by_spheres;  // the candidate walk also tests the nodes' spheres (see buildCflModel)
 
   double squaredDistance(const Eigen::Vector3d& p, const std::array<Eigen::Vector3d, 3>& c,
                          Eigen::Vector3d* closest = nullptr) const {
@@ -687,6 +688,12 @@ std::uint32_t computeCellList(const BuildContext& context, ListScratch& scratch,
     const Eigen::Vector3d outside =
         (node.box().min - center).cwiseMax(center - node.box().max).cwiseMax(0.0);
     if ((outside.array() - half).max(0.0).matrix().squaredNorm() > upper_bound_squared) continue;
+    // Past the sphere, every triangle below is farther than upper_bound from the cube, which the first
+    // exclusion test would find triangle by triangle: the same list, fewer candidates.
+    if (context.prune_by_spheres) {
+      const double sphere_reach = node.radius + half_diagonal + upper_bound;
+      if ((center - node.center).squaredNorm() > sphere_reach * sphere_reach * (1 + 1e-9)) continue;
+    }
     if (cone_usable && coneExcludes(outside.norm(), node.center, node.radius)) continue;
     if (node.isLeaf()) {
       for (int i = node.first; i < node.first + node.count; ++i) candidates.push_back(i);
@@ -1490,8 +1497,13 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   }
   const double largest_edge =
       triangle_edge.empty() ? 0.0 : *std::max_element(triangle_edge.begin(), triangle_edge.end());
-  const BuildContext context{geometry, topology, options.topology_culling, early_split_decisions.load(), four, one,
-                             largest_edge};
+  // Float node boxes round at about 2^-24 of the coordinates: past a ten-thousandth of the mesh's extent they
+  // no longer tell its parts apart (a small part placed far from the origin), and the candidate walk prunes
+  // by the nodes' spheres too.
+  const double coordinate_scale = geometry.bounds.max.cwiseAbs().cwiseMax(geometry.bounds.min.cwiseAbs()).maxCoeff();
+  const bool prune_by_spheres = coordinate_scale * 0x1p-23 > 1e-4 * geometry.bounds.size().maxCoeff();
+  const BuildContext context{geometry,    topology, options.topology_culling, early_split_decisions.load(), four, one,
+                             largest_edge, prune_by_spheres};
   const auto& progress = options.progress;
 
   // 1. The distance field at the root grid's corners, with the nearest triangle of each. Rows are walked in

@@ -944,5 +944,21 @@ TEST(CflBuilder, TopologyNeighboursStayLinearOnManyCopiesOfOneFace) {
   }
 }
 
+// Far from the origin for its size, the float node boxes round coarser than a ten-thousandth of the mesh, and
+// the builder's candidate walk prunes by the nodes' spheres as well: the lists, bounds and point location must
+// stay as conservative as near the origin.
+TEST(CflBuilder, ListsAreConservativeFarFromTheOrigin) {
+  for (const NamedMesh& named : {testMeshes()[1], testMeshes()[2]}) {
+    TriangleMesh moved = named.mesh;
+    const double size = boundingBox(moved).diagonal();
+    for (Eigen::Vector3d& v : moved.vertices) v += Eigen::Vector3d(3e4, -2e4, 1e4) * size;
+    for (int resolution : {0, 10}) {
+      const std::string label = named.name + " far away, resolution " + std::to_string(resolution);
+      const CflModel model = buildCflModel(moved, options(resolution, true));
+      EXPECT_EQ(checkConservative(model, moved, 1500, 5100 + resolution, label), 0) << label;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace cfl

@@ -133,16 +133,13 @@ constexpr std::array<std::uint32_t, 1024> kSpreadBits = [] {
 // the walk are neighbours in space and mostly read what the previous query left in cache.
 // Returns the point indices in that order (an LSD radix sort, three passes of 10 bits: linear, stable, so
 // the order is deterministic), or nothing when the batch is too small or too large to index in 32 bits.
-// parallelFor(n, chunk, body) calls body(begin, end) over ranges covering [0, n) on the batch's threads. With
-// one thread, the three passes' histograms come from one reading of the keys. With more, every pass is split
-// into fixed blocks of points: each block counts its digits, the counts are summed bucket by bucket in block
-// order, and each block places its points from its own offsets; the order is that of the serial sort,
-// whatever the schedule. The arrays are left uninitialized (every element is written before it is read):
-// zeroing them cost as much as a pass.
-template <class ParallelFor>
+// forEachBlock(body) calls body(begin, end) over blocks covering [0, count), on the batch's threads: the
+// keys, the part of the sort that costs arithmetic, are computed there. The arrays are left uninitialized
+// (every element is written before it is read): zeroing them cost as much as a pass.
+template <class ForEachBlock>
 std::unique_ptr<std::uint32_t[]> spatialOrder(const CflModel& model, const Eigen::Isometry3d& X_WM,
-                                              const Eigen::Vector3d* points_W, std::size_t count, int threads,
-                                              ParallelFor&& parallelFor) {
+                                              const Eigen::Vector3d* points_W, std::size_t count,
+                                              ForEachBlock&& forEachBlock) {
   constexpr std::size_t kMinimum = 256;  // a few leaves' worth: little to share, and the histograms' fixed cost
   if (count < kMinimum || count > std::size_t(std::numeric_limits<std::uint32_t>::max())) return {};
   const Aabb box = model.regions.nodes.empty() ? model.geometry.bounds : model.regions.bounds();
@@ -152,7 +149,7 @@ std::unique_ptr<std::uint32_t[]> spatialOrder(const CflModel& model, const Eigen
   const Eigen::Isometry3d X_MW = X_WM.inverse(Eigen::Isometry);
   // (key << 32 | index): one 8-byte word per point moves in each pass.
   std::unique_ptr<std::uint64_t[]> items(new std::uint64_t[count]), scratch(new std::uint64_t[count]);
-  parallelFor(count, 4096, [&](std::size_t begin, std::size_t end) {
+  forEachBlock([&](std::size_t begin, std::size_t end) {
     for (std::size_t i = begin; i != end; ++i) {
       const Eigen::Vector3d q = (X_MW * points_W[i] - low) * scale;
       std::uint32_t cell[3];
@@ -161,60 +158,29 @@ std::unique_ptr<std::uint32_t[]> spatialOrder(const CflModel& model, const Eigen
       items[i] = std::uint64_t(key) << 32 | i;
     }
   });
-  using Histogram = std::array<std::uint32_t, 1024>;
-  constexpr std::size_t kBlock = std::size_t(1) << 16;  // points per block: its counts stay in cache
-  const std::size_t blocks = threads <= 1 ? 1 : (count + kBlock - 1) / kBlock;
-  const std::size_t block_size = blocks == 1 ? count : kBlock;
-  // offsets[pass * blocks + b]: block b's count of each digit of the pass, then where its first such point goes.
-  std::unique_ptr<Histogram[]> offsets(new Histogram[3 * blocks]);
-  auto digit = [](std::uint64_t item, int pass) { return std::uint32_t(item >> (32 + 10 * pass)) & 0x3ffu; };
-  auto count_digits = [&](int first_pass, int last_pass) {
-    parallelFor(blocks, 1, [&](std::size_t b0, std::size_t b1) {
-      for (std::size_t b = b0; b != b1; ++b) {
-        for (int pass = first_pass; pass <= last_pass; ++pass) offsets[pass * blocks + b].fill(0);
-        const std::size_t end = std::min(count, (b + 1) * block_size);
-        for (std::size_t i = b * block_size; i != end; ++i) {
-          for (int pass = first_pass; pass <= last_pass; ++pass) ++offsets[pass * blocks + b][digit(items[i], pass)];
-        }
-      }
-    });
-    for (int pass = first_pass; pass <= last_pass; ++pass) {
-      std::uint32_t sum = 0;
-      for (std::size_t bucket = 0; bucket < 1024; ++bucket) {
-        for (std::size_t b = 0; b < blocks; ++b) sum += std::exchange(offsets[pass * blocks + b][bucket], sum);
-      }
-    }
-  };
-  // A block's points keep their order per digit, so the digits of the next pass are counted on the array
-  // this pass leaves (one block: the counts do not depend on the order, all were taken at once).
-  if (blocks == 1) count_digits(0, 2);
+  std::array<std::array<std::uint32_t, 1024>, 3> histogram{};
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::uint64_t item = items[i];
+    for (int pass = 0; pass < 3; ++pass) ++histogram[pass][(item >> (32 + 10 * pass)) & 0x3ffu];
+  }
+  for (int pass = 0; pass < 3; ++pass) {
+    std::uint32_t sum = 0;
+    for (std::uint32_t& bucket : histogram[pass]) sum += std::exchange(bucket, sum);
+  }
   for (int pass = 0; pass < 2; ++pass) {
-    if (blocks > 1) count_digits(pass, pass);
-    parallelFor(blocks, 1, [&](std::size_t b0, std::size_t b1) {
-      for (std::size_t b = b0; b != b1; ++b) {
-        Histogram& next = offsets[pass * blocks + b];
-        const std::size_t end = std::min(count, (b + 1) * block_size);
-        for (std::size_t i = b * block_size; i != end; ++i) {
-          const std::uint64_t item = items[i];
-          scratch[next[digit(item, pass)]++] = item;
-        }
-      }
-    });
+    const int shift = 32 + 10 * pass;
+    for (std::size_t i = 0; i < count; ++i) {
+      const std::uint64_t item = items[i];
+      scratch[histogram[pass][(item >> shift) & 0x3ffu]++] = item;
+    }
     items.swap(scratch);
   }
   // The last pass places the indices alone.
-  if (blocks > 1) count_digits(2, 2);
   std::unique_ptr<std::uint32_t[]> order(new std::uint32_t[count]);
-  parallelFor(blocks, 1, [&](std::size_t b0, std::size_t b1) {
-    for (std::size_t b = b0; b != b1; ++b) {
-      Histogram& next = offsets[2 * blocks + b];
-      const std::size_t end = std::min(count, (b + 1) * block_size);
-      for (std::size_t i = b * block_size; i != end; ++i) {
-        const std::uint64_t item = items[i];
-        order[next[digit(item, 2)]++] = std::uint32_t(item);
-      }
-    }
-  });
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::uint64_t item = items[i];
+    order[histogram[2][(item >> 52) & 0x3ffu]++] = std::uint32_t(item);
+  }
   return order;
 }
 
@@ -631,9 +597,7 @@ void computePointDistances(const CflModel& model, const Eigen::Isometry3d& X_WM,
   // on the schedule.
   auto inParallel = [&](std::size_t chunk, auto&& body) { detail::parallelChunks(count, threads, chunk, body); };
   const std::unique_ptr<std::uint32_t[]> order =
-      spatialOrder(model, X_WM, points_W, count, threads, [&](std::size_t n, std::size_t chunk, auto&& body) {
-        detail::parallelChunks(n, threads, chunk, body);
-      });
+      spatialOrder(model, X_WM, points_W, count, [&](auto&& body) { inParallel(4096, body); });
   const std::uint32_t* ordered = order.get();
   // Queries positions [begin, end) of the walk; each answer goes to its caller's index.
   auto queryRange = [&](std::size_t begin, std::size_t end) {

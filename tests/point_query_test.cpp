@@ -343,10 +343,9 @@ TEST(PointQuery, BatchEqualsSerialBitForBit) {
   }
 }
 
-// Past 65,536 points on several threads the batch sorts its points in blocks, each block counting and placing
-// its own: every point must still be answered once, at its own index. Checked against the serial call bit for
-// bit (a point left out or answered twice would leave another index unwritten), over the serial sort's count
-// of blocks (one thread) too.
+// A batch of many points on one to three threads (sorted along the curve, split into chunks that the threads
+// steal): every point must be answered once, at its own index. Checked against the serial call bit for bit (a
+// point left out or answered twice would leave another index unwritten).
 TEST(PointQuery, ALargeBatchOnSeveralThreadsEqualsTheSerialCall) {
   test::Rng rng(29);
   const CflModel model = buildCflModel(test::makeTorusKnot(2, 3, 1.0, 0.3, 48, 6));

@@ -1502,7 +1502,7 @@ CflModel buildCflModel(TriangleMesh mesh, const BuildOptions& options) {
   // by the nodes' spheres too.
   const double coordinate_scale = geometry.bounds.max.cwiseAbs().cwiseMax(geometry.bounds.min.cwiseAbs()).maxCoeff();
   const bool prune_by_spheres = coordinate_scale * 0x1p-23 > 1e-4 * geometry.bounds.size().maxCoeff();
-  const BuildContext context{geometry,    topology, options.topology_culling, early_split_decisions.load(), four, one,
+  const BuildContext context{geometry, topology, options.topology_culling, early_split_decisions.load(), four, one,
                              largest_edge, prune_by_spheres};
   const auto& progress = options.progress;
 

@@ -1,7 +1,7 @@
 #pragma once
 /// @file
-/// Test-only switches of buildCflModel (src/cfl_builder.cpp): they may change how long a build takes, never
-/// the model it builds, and the tests check exactly that.
+/// Test-only switches and counts of buildCflModel (src/cfl_builder.cpp): the switches may change how long a
+/// build takes, never the model it builds, and the tests check exactly that.
 
 #include <cstdint>
 

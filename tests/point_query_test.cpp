@@ -343,30 +343,6 @@ TEST(PointQuery, BatchEqualsSerialBitForBit) {
   }
 }
 
-// A batch of many points on one to three threads (sorted along the curve, split into chunks that the threads
-// steal): every point must be answered once, at its own index. Checked against the serial call bit for bit (a
-// point left out or answered twice would leave another index unwritten).
-TEST(PointQuery, ALargeBatchOnSeveralThreadsEqualsTheSerialCall) {
-  test::Rng rng(29);
-  const CflModel model = buildCflModel(test::makeTorusKnot(2, 3, 1.0, 0.3, 48, 6));
-  const Eigen::Isometry3d X_WM = test::randomPose(rng, 2.0);
-  std::vector<Eigen::Vector3d> points;
-  for (const Eigen::Vector3d& p_M : samplePoints(model, 150000, rng)) points.push_back(X_WM * p_M);
-  std::vector<PointDistance> serial;
-  for (const auto& p : points) serial.push_back(computePointDistance(model, X_WM, p));
-  for (int threads : {1, 2, 3}) {
-    PointQueryOptions options;
-    options.threads = threads;
-    std::vector<PointDistance> batch(points.size());
-    computePointDistances(model, X_WM, points.data(), points.size(), batch.data(), options);
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      ASSERT_EQ(std::memcmp(&batch[i].distance, &serial[i].distance, sizeof(double)), 0) << threads << " " << i;
-      ASSERT_EQ(batch[i].triangle, serial[i].triangle) << threads << " " << i;
-      ASSERT_EQ(batch[i].closest_point, serial[i].closest_point) << threads << " " << i;
-    }
-  }
-}
-
 // The batch's cached list scan bounds slivers by half-spaces of their own (edge normals within the accurate
 // plane, or, without a plane, along and across the longest edge): on fans of slivers, every answer must be the
 // brute force's and the serial call's, bit for bit, near the strips and in the box about them.

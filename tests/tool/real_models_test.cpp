@@ -1,12 +1,16 @@
 // Exact distances on real models the project was not tuned on: Debian's assimp-testmodels (installed by
 // .ci/setup; the tests skip, saying so, where it is not), read through cfl::loadMesh as a user's files are,
 // against brute force over all triangle pairs, from overlap to apart. A human figure (thin limbs and
-// fingers), the COLLADA duck and the IFC FZK house (thin walls, slabs and window frames, many slivers).
+// fingers), the COLLADA duck and the IFC FZK house (thin walls, slabs and window frames, many slivers); and
+// the human figure, a closed mesh, signed at points near its surface and around it.
 
 #include "cfl/cfl_model.h"
 #include "cfl/cfl_query.h"
 #include "cfl/mesh_io.h"
 #include "cfl/mesh_model.h"
+#include "cfl/point_query.h"
+#include "cfl/triangle_distance.h"
+#include "support/sign_references.h"
 #include "support/test_meshes.h"
 
 #include <gtest/gtest.h>
@@ -24,6 +28,7 @@ const std::string kModels = "/usr/share/assimp/models/";
 
 struct RealModel {
   std::string name;
+  TriangleMesh mesh;
   CflModel cfl;
   MeshModel model;
 };
@@ -36,6 +41,7 @@ const RealModel* realModel(const std::string& relative_path) {
     TriangleMesh mesh = loadMesh(kModels + relative_path);
     auto real = std::make_unique<RealModel>();
     real->name = relative_path;
+    real->mesh = mesh;
     real->model = makeMeshModel(mesh);
     real->cfl = buildCflModel(std::move(mesh));
     it->second = std::move(real);
@@ -101,6 +107,63 @@ TEST(RealModels, DuckAgainstTheHumanFigureMatchesBruteForce) {
 
 TEST(RealModels, HouseAgainstTheHumanFigureMatchesBruteForce) {
   expectExactOnRealModels("IFC/AC14-FZK-Haus.ifc", "BLEND/HUMAN.blend", 1, 13);
+}
+
+// Signed point distances on the closed human figure: |distance| equals the least point-triangle distance
+// over all triangles, and the sign agrees with an independent winding number (a plain sum of solid
+// angles) wherever the point is not within 1e-6 of the diagonal of the surface; the closest point is that
+// far from the point and lies on the named triangle.
+TEST(RealModels, SignedPointDistancesOnTheClosedHumanFigureMatchBruteForce) {
+  const RealModel* human = realModel("BLEND/HUMAN.blend");
+  if (human == nullptr) {
+    GTEST_SKIP() << "assimp-testmodels is not installed (apt-get install assimp-testmodels)";
+  }
+  ASSERT_TRUE(human->cfl.sign.closure.closed) << human->cfl.sign.closure.reason;
+  const TriangleMesh& mesh = human->mesh;
+  const Aabb box = human->model.bounds;
+  const double diagonal = box.diagonal();
+  test::Rng rng(21);
+  std::vector<Eigen::Vector3d> points;
+  std::uniform_real_distribution<double> unit(0, 1);
+  std::uniform_int_distribution<int> triangle(0, int(mesh.triangles.size()) - 1);
+  // Half spread over 1.2 times the box, half within 2% of the diagonal of a random surface point.
+  for (int k = 0; k < 600; ++k) {
+    const Eigen::Vector3d u(unit(rng), unit(rng), unit(rng));
+    points.push_back(box.center() + 1.2 * (u - Eigen::Vector3d::Constant(0.5)).cwiseProduct(box.size()));
+    const Eigen::Vector3d offset = test::randomRotation(rng).col(0) * (0.02 * diagonal * unit(rng));
+    points.push_back(test::randomPointOnTriangle(mesh, triangle(rng), rng) + offset);
+  }
+  const Eigen::Isometry3d X_WM = test::randomPose(rng, 5.0);
+  std::vector<Eigen::Vector3d> points_W;
+  for (const auto& p : points) points_W.push_back(X_WM * p);
+  std::vector<PointDistance> results(points.size());
+  PointQueryOptions options;
+  options.signed_distance = true;
+  computePointDistances(human->cfl, X_WM, points_W.data(), points_W.size(), results.data(), options);
+  int inside = 0, failures = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d& p = points[i];
+    double least = std::numeric_limits<double>::infinity();
+    for (const auto& t : mesh.triangles) {
+      least = std::min(least, pointTriangleSquaredDistance(p, mesh.vertices[t[0]], mesh.vertices[t[1]],
+                                                           mesh.vertices[t[2]]));
+    }
+    least = std::sqrt(least);
+    const PointDistance& r = results[i];
+    const bool in = test::referenceWindingNumber(mesh, p) > 0.5;
+    inside += in;
+    const double tolerance = 1e-9 * diagonal;
+    bool ok = std::abs(std::abs(r.distance) - least) <= tolerance &&
+              std::abs((points_W[i] - r.closest_point).norm() - least) <= tolerance && r.triangle >= 0;
+    if (least > 1e-6 * diagonal) ok = ok && (r.distance < 0) == in;
+    if (!ok && ++failures <= 5) {
+      ADD_FAILURE() << "point " << i << " (" << p.transpose() << "): cfl " << r.distance << " on triangle "
+                    << r.triangle << ", brute force " << least << (in ? " inside" : " outside");
+    }
+  }
+  EXPECT_EQ(failures, 0) << "of " << points.size() << " points";
+  EXPECT_GT(inside, 50) << "points inside the figure were checked too";
+  EXPECT_LT(inside, int(points.size()) - 50);
 }
 
 }  // namespace

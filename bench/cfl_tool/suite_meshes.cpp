@@ -641,7 +641,9 @@ void generateSuite(const std::string& dir, bool huge, std::ostream& log) {
       {"real_house_vs_human", house, human, "a person in a building"},
   };
   bool have_real = true;
-  for (const std::string& path : {engine, house, human, duck, yxa}) have_real = have_real && std::filesystem::exists(path);
+  for (const std::string& path : {engine, house, human, duck, yxa}) {
+    have_real = have_real && std::filesystem::exists(path);
+  }
   if (have_real) {
     entries.insert(entries.end(), real.begin(), real.end());
     log << "listed " << real.size() << " cases of real meshes read in place from " << models << '\n';

@@ -26,8 +26,9 @@ namespace {
 
 const std::string kModels = "/usr/share/assimp/models/";
 
+constexpr const char* kNotInstalled = "assimp-testmodels is not installed (apt-get install assimp-testmodels)";
+
 struct RealModel {
-  std::string name;
   TriangleMesh mesh;
   CflModel cfl;
   MeshModel model;
@@ -40,7 +41,6 @@ const RealModel* realModel(const std::string& relative_path) {
   if (inserted && std::filesystem::exists(kModels + relative_path)) {
     TriangleMesh mesh = loadMesh(kModels + relative_path);
     auto real = std::make_unique<RealModel>();
-    real->name = relative_path;
     real->mesh = mesh;
     real->model = makeMeshModel(mesh);
     real->cfl = buildCflModel(std::move(mesh));
@@ -67,7 +67,7 @@ void expectExactOnRealModels(const std::string& path_a, const std::string& path_
   const RealModel* a = realModel(path_a);
   const RealModel* b = realModel(path_b);
   if (a == nullptr || b == nullptr) {
-    GTEST_SKIP() << "assimp-testmodels is not installed (apt-get install assimp-testmodels)";
+    GTEST_SKIP() << kNotInstalled;
   }
   test::Rng rng(seed);
   const double tolerance = 1e-9 * a->model.bounds.diagonal();
@@ -116,7 +116,7 @@ TEST(RealModels, HouseAgainstTheHumanFigureMatchesBruteForce) {
 TEST(RealModels, SignedPointDistancesOnTheClosedHumanFigureMatchBruteForce) {
   const RealModel* human = realModel("BLEND/HUMAN.blend");
   if (human == nullptr) {
-    GTEST_SKIP() << "assimp-testmodels is not installed (apt-get install assimp-testmodels)";
+    GTEST_SKIP() << kNotInstalled;
   }
   ASSERT_TRUE(human->cfl.sign.closure.closed) << human->cfl.sign.closure.reason;
   const TriangleMesh& mesh = human->mesh;

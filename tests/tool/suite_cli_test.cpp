@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -106,6 +107,47 @@ TEST_F(SuiteCliTest, TinySuitePrintsOneExactRowPerCaseWorstFirst) {
   // The only short-range band is 2%, so rows must come in increasing order of its ratio.
   std::sort(order.begin(), order.end());
   for (std::size_t i = 1; i < order.size(); ++i) EXPECT_LE(order[i - 1].second, order[i].second) << r.out;
+}
+
+// bench/sweep_models.sh over a small tree as a user's model directory might be: each distinct mesh in the
+// size range becomes one case (a copy of a mesh under another name does not, nor does one too small), a file
+// cfl cannot read is listed with the reason, a directory whose name holds a space still works, and the suite
+// runs to one exact row per case.
+TEST_F(SuiteCliTest, SweepScriptRunsEveryDistinctReadableMeshOfATree) {
+  const std::string models = path("models"), nested = models + "/two words";
+  ASSERT_EQ(::mkdir(models.c_str(), 0755), 0);
+  ASSERT_EQ(::mkdir(nested.c_str(), 0755), 0);
+  writeObj(models + "/torus.obj", test::makeTorus(1.0, 0.3, 20, 10));
+  writeObj(models + "/same_torus.obj", test::makeTorus(1.0, 0.3, 20, 10));
+  writeObj(nested + "/knot.obj", test::makeTorusKnot(2, 3, 1.0, 0.3, 40, 8));
+  writeObj(models + "/box.obj", test::makeBox({-1, -1, -1}, {1, 1, 1}));
+  writeFile(models + "/notes.txt", "not a mesh\n");
+  const std::string out = path("sweep");
+  const std::string command = "/usr/bin/env CFL=" + tool_test::quote(CFL_TOOL_PATH) + " MIN_TRIANGLES=100 bash " +
+                              tool_test::quote(CFL_SWEEP_SCRIPT) + " " + tool_test::quote(models) + " " +
+                              tool_test::quote(out) + " --queries 2 --repeats 1 --bands 0.02 --threads 1 > " +
+                              tool_test::quote(path("stdout.txt")) + " 2> " + tool_test::quote(path("stderr.txt"));
+  const int raw = std::system(command.c_str());
+  const std::string stdout_text = readFile(path("stdout.txt")), stderr_text = readFile(path("stderr.txt"));
+  ASSERT_TRUE(WIFEXITED(raw) && WEXITSTATUS(raw) == 0) << stdout_text << stderr_text;
+  EXPECT_TRUE(contains(stdout_text, "2 meshes of 100 to 150000 triangles; 1 files repeat a mesh already kept, 1 lie "
+                                    "outside that range, 1 are refused"))
+      << stdout_text;
+  const std::string refused = readFile(out + "/refused.txt");
+  EXPECT_TRUE(contains(refused, models + "/notes.txt: ")) << refused;
+  std::vector<std::string> names;
+  for (const std::string& line : splitOn(readFile(out + "/manifest.txt"), '\n')) {
+    if (!line.empty()) names.push_back(words(line).at(0));
+  }
+  EXPECT_EQ(names.size(), 2u);
+  for (const std::string& name : names) {
+    const std::vector<std::string> row = rowOf(stdout_text, name);
+    ASSERT_EQ(row.size(), 5u) << name << "\n" << stdout_text;
+    EXPECT_GT(ratioOf(words(row[1]).at(0)), 0) << name;
+    EXPECT_LE(std::stod(words(row[4]).at(0)), 1e-9) << name;
+    EXPECT_EQ(words(row[4]).size(), 1u) << "marked: " << row[4];
+  }
+  EXPECT_FALSE(rowOf(stdout_text, "two_words_knot_obj").empty()) << stdout_text;
 }
 
 TEST_F(SuiteCliTest, BadSuitesFailNamingTheCulprit) {

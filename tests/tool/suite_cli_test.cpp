@@ -110,20 +110,20 @@ TEST_F(SuiteCliTest, TinySuitePrintsOneExactRowPerCaseWorstFirst) {
 }
 
 // bench/sweep_models.sh over a small tree as a user's model directory might be: each distinct mesh in the
-// size range becomes one case (a copy of a mesh under another name does not, nor does one too small), a file
-// cfl cannot read is listed with the reason, a directory whose name holds a space still works, and the suite
-// runs to one exact row per case.
+// size range becomes one case (a copy of a mesh under another name does not, nor does one too small), and with
+// PAIRS=1 one more against another mesh; a file cfl cannot read is listed with the reason, a directory whose
+// name holds a space still works, and the suite runs to one exact row per case.
 TEST_F(SuiteCliTest, SweepScriptRunsEveryDistinctReadableMeshOfATree) {
   const std::string models = path("models"), nested = models + "/two words";
   ASSERT_EQ(::mkdir(models.c_str(), 0755), 0);
   ASSERT_EQ(::mkdir(nested.c_str(), 0755), 0);
   writeObj(models + "/torus.obj", test::makeTorus(1.0, 0.3, 20, 10));
-  writeObj(models + "/same_torus.obj", test::makeTorus(1.0, 0.3, 20, 10));
+  writeObj(models + "/torus_copy.obj", test::makeTorus(1.0, 0.3, 20, 10));
   writeObj(nested + "/knot.obj", test::makeTorusKnot(2, 3, 1.0, 0.3, 40, 8));
   writeObj(models + "/box.obj", test::makeBox({-1, -1, -1}, {1, 1, 1}));
   writeFile(models + "/notes.txt", "not a mesh\n");
   const std::string out = path("sweep");
-  const std::string command = "/usr/bin/env CFL=" + tool_test::quote(CFL_TOOL_PATH) + " MIN_TRIANGLES=100 bash " +
+  const std::string command = "/usr/bin/env CFL=" + tool_test::quote(CFL_TOOL_PATH) + " MIN_TRIANGLES=100 PAIRS=1 bash " +
                               tool_test::quote(CFL_SWEEP_SCRIPT) + " " + tool_test::quote(models) + " " +
                               tool_test::quote(out) + " --queries 2 --repeats 1 --bands 0.02 --threads 1 > " +
                               tool_test::quote(path("stdout.txt")) + " 2> " + tool_test::quote(path("stderr.txt"));
@@ -139,7 +139,9 @@ TEST_F(SuiteCliTest, SweepScriptRunsEveryDistinctReadableMeshOfATree) {
   for (const std::string& line : splitOn(readFile(out + "/manifest.txt"), '\n')) {
     if (!line.empty()) names.push_back(words(line).at(0));
   }
-  EXPECT_EQ(names.size(), 2u);
+  const std::vector<std::string> expected = {"torus_obj", "two_words_knot_obj", "torus_obj_vs_two_words_knot_obj",
+                                             "two_words_knot_obj_vs_torus_obj"};
+  EXPECT_EQ(std::set<std::string>(names.begin(), names.end()), std::set<std::string>(expected.begin(), expected.end()));
   for (const std::string& name : names) {
     const std::vector<std::string> row = rowOf(stdout_text, name);
     ASSERT_EQ(row.size(), 5u) << name << "\n" << stdout_text;
@@ -147,7 +149,9 @@ TEST_F(SuiteCliTest, SweepScriptRunsEveryDistinctReadableMeshOfATree) {
     EXPECT_LE(std::stod(words(row[4]).at(0)), 1e-9) << name;
     EXPECT_EQ(words(row[4]).size(), 1u) << "marked: " << row[4];
   }
-  EXPECT_FALSE(rowOf(stdout_text, "two_words_knot_obj").empty()) << stdout_text;
+  const std::vector<std::string> pair = rowOf(stdout_text, "torus_obj_vs_two_words_knot_obj");
+  ASSERT_FALSE(pair.empty()) << stdout_text;
+  EXPECT_EQ(words(pair[0]).at(1), "400/640") << pair[0];
 }
 
 TEST_F(SuiteCliTest, BadSuitesFailNamingTheCulprit) {

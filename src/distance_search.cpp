@@ -908,14 +908,15 @@ class Search {
   // spheres' gap, the gap along the line between the two centers (far apart, nearly exact), the box's gap
   // from the triangle's plane (`normal`: unit, or zero for a degenerate triangle, which gets no such bound),
   // the gap along each box axis (the triangle's corners against the box's extent), and in the plane across
-  // each edge. What a node pair's bound takes of two boxes, with one of them a single triangle of a leaf
-  // that is split into its triangles. Cheapest and most often deciding first: returns as soon as the bound
-  // reaches `threshold`, where the pair is pruned whatever the later terms say.
+  // each edge; for a sliver (`spine_code`, MeshModel::spines), also across its spine and each box axis. What
+  // a node pair's bound takes of two boxes, with one of them a single triangle of a leaf that is split into
+  // its triangles. Cheapest and most often deciding first: returns as soon as the bound reaches `threshold`,
+  // where the pair is pruned whatever the later terms say.
   static double triangleNodeLowerBound(const Eigen::Vector3d corners[3], const Eigen::Vector3d& triangle_center,
                                        double triangle_radius, const Eigen::Vector3d& normal, double offset,
                                        const Eigen::Vector3d& node_center, double node_radius,
                                        const Eigen::Matrix3d& axes, const Eigen::Vector3d& box_center,
-                                       const Eigen::Vector3d& half, double threshold) {
+                                       const Eigen::Vector3d& half, double threshold, std::uint8_t spine_code) {
     double bound = (node_center - triangle_center).norm() - triangle_radius - node_radius;
     if (bound >= threshold) return bound;
     const Eigen::Vector3d line = box_center - triangle_center;
@@ -948,6 +949,28 @@ class Search {
     const Eigen::Vector3d box_gap = (low - box_center).cwiseMax(box_center - high) - box_reach;
     bound = std::max({bound, outside.norm() - node_radius, box_gap.maxCoeff()});
     if (bound >= threshold) return bound;
+    // A sliver is nearly a segment, and a segment and a box are separated along their directions' cross
+    // products as often as along the box's axes; its sphere and plane say little about a node beside it (a
+    // CAD cylinder's sides, 235 times longer than wide, against a modelled figure's nodes passed nearly all of
+    // the terms above, and each node's triangles then went to the pair filter).
+    if ((spine_code & kSliverSpine) != 0) {
+      const int edge = spine_code & 3;
+      const Eigen::Vector3d along = corners[edge == 2 ? 0 : edge + 1] - corners[edge];
+      const Eigen::Vector3d in_box = axes.transpose() * along;
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector3d axis = along.cross(axes.col(k));
+        const double axis_squared = axis.squaredNorm();
+        if (!(axis_squared > 1e-12 * along.squaredNorm())) continue;
+        const double p0 = axis.dot(corners[0]), p1 = axis.dot(corners[1]), p2 = axis.dot(corners[2]);
+        const double middle = axis.dot(box_center);
+        // |axis . u_j| for the box's axes: (along x u_k) . u_j = along . (u_k x u_j), zero for j = k.
+        const int i = (k + 1) % 3, j = (k + 2) % 3;
+        const double reach = half[i] * std::abs(in_box[j]) + half[j] * std::abs(in_box[i]);
+        const double gap = std::max(std::min({p0, p1, p2}) - middle - reach, middle - reach - std::max({p0, p1, p2}));
+        if (gap > 0) bound = std::max(bound, gap / std::sqrt(axis_squared));
+      }
+      if (bound >= threshold) return bound;
+    }
     // In the plane, across each edge: where the node lies beside a large triangle rather than over it.
     for (int edge = 0; edge < 3; ++edge) {
       const Eigen::Vector3d& from = corners[edge];
@@ -967,7 +990,7 @@ class Search {
     const Eigen::Vector4d& plane = mesh_a_.leaf_planes[m];
     return triangleNodeLowerBound(mesh_a_.corners.in_leaf_order[m].data(), sphere.head<3>(), sphere[3], plane.head<3>(),
                                   plane[3], b.center, b.node->radius, b.obb_axes, b.obb_center, b.node->obb_half,
-                                  threshold);
+                                  threshold, mesh_a_.spines[std::size_t(mesh_a_.bvh.triangle_ids[m])]);
   }
   // A prepared triangle of B against node a of A's Bvh.
   double triangleOfBNodeLowerBound(const PreparedTriangle& tb, int a, double threshold) const {
@@ -976,7 +999,7 @@ class Search {
     if (box_gap >= threshold) return box_gap;
     return std::max(box_gap, triangleNodeLowerBound(tb.corners, tb.center, tb.radius, tb.normal, tb.offset, node.center,
                                                     node.radius, node.obb_axes, node.obb_center, node.obb_half,
-                                                    threshold));
+                                                    threshold, tb.spine_code));
   }
 
   // Default mode: best-first over B's Bvh. A node of B is bounded against A's distance field in O(1); once

@@ -51,8 +51,12 @@ mkdir -p "$out/links"
 declare -A seen
 kept=0 refused=0 duplicates=0 outside=0 links=0
 while IFS= read -r -d '' file; do
-  if ! info=$(timeout 120 "$cfl" info "$file" 2>&1); then
-    printf '%s: %s\n' "$file" "$(printf '%s' "$info" | grep -v '^building' | tail -1)" >> "$out/refused.txt"
+  status=0
+  info=$(timeout 120 "$cfl" info "$file" 2>&1) || status=$?
+  if [ "$status" -ne 0 ]; then
+    reason=$(printf '%s' "$info" | grep -v '^building' | tail -1 || true)
+    [ "$status" -eq 124 ] && reason="cfl info did not finish within 120 s"
+    printf '%s: %s\n' "$file" "${reason:-cfl info failed with status $status}" >> "$out/refused.txt"
     refused=$((refused + 1))
     continue
   fi

@@ -154,7 +154,14 @@ TEST(RealModels, SignedPointDistancesOnTheClosedHumanFigureMatchBruteForce) {
     inside += in;
     const double tolerance = 1e-9 * diagonal;
     bool ok = std::abs(std::abs(r.distance) - least) <= tolerance &&
-              std::abs((points_W[i] - r.closest_point).norm() - least) <= tolerance && r.triangle >= 0;
+              std::abs((points_W[i] - r.closest_point).norm() - least) <= tolerance && r.triangle >= 0 &&
+              r.triangle < int(mesh.triangles.size());
+    if (ok) {
+      const auto& t = mesh.triangles[std::size_t(r.triangle)];
+      const double off_triangle = std::sqrt(pointTriangleSquaredDistance(
+          X_WM.inverse() * r.closest_point, mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]]));
+      ok = off_triangle <= tolerance;
+    }
     if (least > 1e-6 * diagonal) ok = ok && (r.distance < 0) == in;
     if (!ok && ++failures <= 5) {
       ADD_FAILURE() << "point " << i << " (" << p.transpose() << "): cfl " << r.distance << " on triangle "
